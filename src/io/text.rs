@@ -1,0 +1,84 @@
+//! Line reader and token parsing shared by the text formats.
+
+use std::io::{BufRead, ErrorKind};
+use std::path::Path;
+use std::str::FromStr;
+
+use crate::error::{Error, Result};
+
+/// Reads a text input line by line, strips `#` comments and surrounding whitespace, skips blank
+/// lines, and keeps the 1-based number of the last line read for error messages.
+pub(crate) struct LineReader<'p, R> {
+    r: R,
+    path: &'p Path,
+    text: String,
+    /// Number of lines read so far (= the 1-based number of the last line returned).
+    pub line: usize,
+}
+
+impl<'p, R: BufRead> LineReader<'p, R> {
+    /// Starts reading `r`; `first_line - 1` lines are taken as already read (for bodies that
+    /// follow a header parsed elsewhere).
+    pub fn new(r: R, path: &'p Path, first_line: usize) -> Self {
+        LineReader { r, path, text: String::new(), line: first_line.saturating_sub(1) }
+    }
+
+    /// The next line with content, as `(line number, trimmed text without comment)`, or
+    /// `None` at the end of the input. Invalid UTF-8 is a parse error.
+    pub fn next_content(&mut self) -> Result<Option<(usize, &str)>> {
+        let range = loop {
+            self.text.clear();
+            let n = match self.r.read_line(&mut self.text) {
+                Ok(n) => n,
+                Err(e) if e.kind() == ErrorKind::InvalidData => {
+                    let msg = "expected UTF-8 text, found invalid bytes (binary data?)";
+                    return Err(Error::parse(self.path, Some(self.line + 1), msg));
+                }
+                Err(e) => return Err(Error::io(self.path, e)),
+            };
+            if n == 0 {
+                return Ok(None);
+            }
+            self.line += 1;
+            let body = &self.text[..self.text.find('#').unwrap_or(self.text.len())];
+            let start = body.len() - body.trim_start().len();
+            let end = body.trim_end().len();
+            if start < end {
+                break start..end;
+            }
+        };
+        Ok(Some((self.line, &self.text[range])))
+    }
+
+    /// The unread rest of the input.
+    pub fn inner(&self) -> &R {
+        &self.r
+    }
+
+    /// Like [`Self::next_content`], but the end of the input is a "truncated" error saying
+    /// what was `expected`.
+    pub fn expect_content(&mut self, expected: &str) -> Result<(usize, &str)> {
+        let (path, line) = (self.path, self.line);
+        match self.next_content()? {
+            Some(x) => Ok(x),
+            None => Err(Error::parse(
+                path,
+                Some(line + 1),
+                format!("truncated file: expected {expected}, found end of file"),
+            )),
+        }
+    }
+}
+
+/// A token shortened for error messages.
+pub(crate) fn clip(tok: &str) -> String {
+    match tok.char_indices().nth(40) {
+        Some((i, _)) => format!("{}…", &tok[..i]),
+        None => tok.to_string(),
+    }
+}
+
+/// Parses `tok` as a `T`; on failure the message says `expected {what}, found '{tok}'`.
+pub(crate) fn parse_tok<T: FromStr>(tok: &str, what: &str, path: &Path, line: usize) -> Result<T> {
+    tok.parse().map_err(|_| Error::parse(path, Some(line), format!("expected {what}, found '{}'", clip(tok))))
+}

@@ -1,0 +1,441 @@
+//! Discrete Laplacians L = A⁻¹ W of the paper (§2, eq. (1) and (2)).
+//!
+//! We store the *stiffness* matrix W = D − (edge weights) (n × n, sparse, symmetric, positive
+//! semi-definite, zero row sums, positive diagonal) and the vertex weights A (the diagonal
+//! "mass", length n). The spectral problem is the generalized one W φ = λ A φ.
+//!
+//! - Triangle meshes: cotangent weights (2) with the lumped barycentric mass a_i = ⅓ Σ area.
+//! - Point clouds and abstract data: a symmetric K-nearest-neighbour graph with Gaussian weights
+//!   (1) and self-tuning bandwidth, vertex weights A = I (unnormalized) or A = D (random walk).
+
+use std::num::NonZero;
+
+use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::shape::{PointSet, TriMesh};
+
+/// Which discretization produced a [`Laplacian`].
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub enum LaplacianKind {
+    /// Cotangent weights, barycentric lumped mass (eq. (2)).
+    Cotangent,
+    /// Gaussian-weighted kNN graph (eq. (1)).
+    Knn,
+    /// A graph given by its edges.
+    Graph,
+}
+
+/// Vertex weights of a graph Laplacian (paper §2): A = I or A = D.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum VertexWeights {
+    /// A = I: the unnormalized graph Laplacian D − W.
+    Identity,
+    /// A = D: the random-walk Laplacian I − D⁻¹W.
+    Degree,
+}
+
+/// Gaussian bandwidth σ of the kNN graph weights (1).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub enum Bandwidth {
+    /// Zelnik-Manor & Perona local scaling: w_ij = exp(−‖xᵢ−xⱼ‖² / (σᵢ σⱼ)) with σᵢ the distance
+    /// from xᵢ to its K-th nearest neighbour. For σᵢ = σⱼ = σ this is (1) with 2σ² → σ².
+    SelfTuning,
+    /// One global σ in (1): w_ij = exp(−‖xᵢ−xⱼ‖² / 2σ²), in the units of the coordinates.
+    Fixed(f64),
+}
+
+/// Options of the kNN graph Laplacian.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct KnnOptions {
+    /// Number of neighbours K of every point (paper: 10).
+    pub k: usize,
+    /// Vertex weights A.
+    pub vertex_weights: VertexWeights,
+    /// Bandwidth σ.
+    pub bandwidth: Bandwidth,
+}
+
+impl Default for KnnOptions {
+    fn default() -> Self {
+        KnnOptions { k: 10, vertex_weights: VertexWeights::Identity, bandwidth: Bandwidth::SelfTuning }
+    }
+}
+
+/// A discrete Laplacian L = A⁻¹ W.
+#[derive(Debug, Clone)]
+pub struct Laplacian {
+    /// W (n × n): stiffness D − weights; symmetric PSD, zero row sums, every diagonal entry stored.
+    pub w: SparseColMat<usize, f64>,
+    /// A (length n): vertex weights (areas in units² for meshes), all > 0.
+    pub mass: Vec<f64>,
+    /// How it was built.
+    pub kind: LaplacianKind,
+}
+
+impl Laplacian {
+    /// Number of vertices n.
+    pub fn n(&self) -> usize {
+        self.mass.len()
+    }
+
+    /// y = W x (x, y of length n).
+    pub fn apply_w(&self, x: &[f64]) -> Vec<f64> {
+        let w = self.w.as_ref();
+        let (cp, ri, val) = (w.symbolic().col_ptr(), w.symbolic().row_idx(), w.val());
+        let mut y = vec![0.0; x.len()];
+        // W is symmetric: row i of W is column i.
+        y.par_iter_mut().enumerate().for_each(|(i, yi)| {
+            *yi = (cp[i]..cp[i + 1]).map(|p| val[p] * x[ri[p]]).sum();
+        });
+        y
+    }
+}
+
+/// Assembles a symmetric n × n CSC matrix from `(row, col, value)` entries (duplicates summed,
+/// every diagonal entry present, rows sorted within each column).
+///
+/// Written here rather than through faer's triplet constructor so that duplicates are summed
+/// explicitly and the diagonal is always stored (the eigensolver shifts it in place).
+pub(crate) fn assemble_symmetric(n: usize, mut entries: Vec<(usize, usize, f64)>) -> SparseColMat<usize, f64> {
+    entries.extend((0..n).map(|i| (i, i, 0.0)));
+    entries.par_sort_unstable_by_key(|&(r, c, _)| (c, r));
+    let mut col_ptr = vec![0usize; n + 1];
+    let mut row_idx = Vec::with_capacity(entries.len());
+    let mut vals: Vec<f64> = Vec::with_capacity(entries.len());
+    let mut last: Option<(usize, usize)> = None;
+    for (r, c, v) in entries {
+        if last == Some((r, c)) {
+            *vals.last_mut().expect("a previous entry exists") += v;
+        } else {
+            row_idx.push(r);
+            vals.push(v);
+            col_ptr[c + 1] += 1;
+            last = Some((r, c));
+        }
+    }
+    for c in 0..n {
+        col_ptr[c + 1] += col_ptr[c];
+    }
+    let sym = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
+    SparseColMat::new(sym, vals)
+}
+
+/// Lengths of the three edges of a triangle, opposite its corners 0, 1, 2.
+fn opposite_lengths(p: [[f64; 3]; 3]) -> [f64; 3] {
+    let d = |a: [f64; 3], b: [f64; 3]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+    [d(p[1], p[2]), d(p[2], p[0]), d(p[0], p[1])]
+}
+
+/// Area of a triangle from its edge lengths (Kahan's numerically stable Heron formula).
+fn heron(l: [f64; 3]) -> f64 {
+    let mut s = l;
+    s.sort_by(|a, b| b.total_cmp(a)); // a ≥ b ≥ c
+    let [a, b, c] = s;
+    let p = (a + (b + c)) * (c - (a - b)) * (c + (a - b)) * (a + (b - c));
+    0.25 * p.max(0.0).sqrt()
+}
+
+/// Relative size of the intrinsic mollification margin: every triangle inequality must hold with a
+/// slack of at least `MOLLIFY_FACTOR × mean edge length` (Sharp & Crane 2020, as in
+/// robust-laplacian).
+pub const MOLLIFY_FACTOR: f64 = 1e-6;
+
+/// Cotangent Laplacian of a triangle mesh (paper eq. (2)): w_ij = ½(cot αᵢⱼ + cot βᵢⱼ) and
+/// a_i = ⅓ Σ (one-ring triangle areas).
+///
+/// Degenerate triangles: we apply *intrinsic mollification* (Sharp & Crane, "A Laplacian for
+/// nonmanifold triangle meshes", 2020; the default of robust-laplacian): when some triangle's
+/// edge lengths violate the triangle inequality by less than ε = 10⁻⁶ × mean edge length, a
+/// constant δ is added to every edge length so that all inequalities hold with slack ε, and all
+/// cotangents and areas are computed intrinsically from those lengths. On meshes without
+/// (near-)degenerate triangles δ = 0 and the result is the textbook cotangent Laplacian exactly.
+/// Triangles with a repeated vertex index carry no geometry and are skipped.
+///
+/// Errors: a vertex that belongs to no (non-skipped) triangle would have zero mass and is
+/// rejected, naming the vertex.
+pub fn cotangent(mesh: &TriMesh) -> Result<Laplacian> {
+    let n = mesh.n_vertices();
+    let faces: Vec<usize> = (0..mesh.n_faces())
+        .filter(|&f| {
+            let t = mesh.faces()[f];
+            t[0] != t[1] && t[1] != t[2] && t[0] != t[2]
+        })
+        .collect();
+    if faces.is_empty() {
+        return Err(Error::invalid("mesh", "it has no non-degenerate triangle; use a point-cloud (kNN) Laplacian"));
+    }
+    let lengths: Vec<[f64; 3]> = faces.iter().map(|&f| opposite_lengths(mesh.corners(f))).collect();
+    let mean_len = lengths.iter().flatten().sum::<f64>() / (3 * lengths.len()) as f64;
+    let eps = MOLLIFY_FACTOR * mean_len;
+    let delta = lengths
+        .iter()
+        .map(|l| (0..3).map(|c| eps - (l[(c + 1) % 3] + l[(c + 2) % 3] - l[c])).fold(0.0f64, f64::max))
+        .fold(0.0f64, f64::max);
+
+    let mut mass = vec![0.0; n];
+    let mut entries = Vec::with_capacity(faces.len() * 9);
+    for (&f, l) in faces.iter().zip(&lengths) {
+        let l = [l[0] + delta, l[1] + delta, l[2] + delta];
+        let area = heron(l);
+        let t = mesh.faces()[f];
+        for c in 0..3 {
+            mass[t[c] as usize] += area / 3.0;
+            // cot of the angle at corner c, opposite edge l[c]: (b² + c² − a²) / (4 area).
+            let (a, b, cc) = (l[c], l[(c + 1) % 3], l[(c + 2) % 3]);
+            let cot = if area > 0.0 { (b * b + cc * cc - a * a) / (4.0 * area) } else { 0.0 };
+            let (i, j) = (t[(c + 1) % 3] as usize, t[(c + 2) % 3] as usize);
+            let w = 0.5 * cot;
+            entries.push((i, j, -w));
+            entries.push((j, i, -w));
+            entries.push((i, i, w));
+            entries.push((j, j, w));
+        }
+    }
+    if let Some(i) = mass.iter().position(|&a| a <= 0.0) {
+        let count = mass.iter().filter(|&&a| a <= 0.0).count();
+        return Err(Error::invalid(
+            "mesh",
+            format!(
+                "{count} vertices (first: {i}) belong to no triangle and would have zero mass; \
+                 remove unreferenced vertices or use the kNN (point cloud) Laplacian"
+            ),
+        ));
+    }
+    Ok(Laplacian { w: assemble_symmetric(n, entries), mass, kind: LaplacianKind::Cotangent })
+}
+
+/// Laplacian of a graph given by weighted undirected edges `(i, j, w_ij)` (each edge once; w ≥ 0)
+/// on `n` vertices, with vertex weights A = I or A = D.
+///
+/// Errors: an index ≥ n, a self-loop, a negative or non-finite weight, or (for A = D) a vertex of
+/// degree zero.
+pub fn graph(n: usize, edges: &[(usize, usize, f64)], vertex_weights: VertexWeights) -> Result<Laplacian> {
+    if n == 0 {
+        return Err(Error::invalid("graph", "it has no vertices"));
+    }
+    let mut degree = vec![0.0; n];
+    let mut entries = Vec::with_capacity(edges.len() * 4);
+    for (e, &(i, j, w)) in edges.iter().enumerate() {
+        if i >= n || j >= n || i == j {
+            return Err(Error::invalid(
+                "graph",
+                format!("edge {e} = ({i}, {j}) is out of range or a self-loop (n = {n})"),
+            ));
+        }
+        if !(w.is_finite() && w >= 0.0) {
+            return Err(Error::invalid("graph", format!("edge {e} = ({i}, {j}) has weight {w}")));
+        }
+        degree[i] += w;
+        degree[j] += w;
+        entries.extend([(i, j, -w), (j, i, -w), (i, i, w), (j, j, w)]);
+    }
+    let mass = match vertex_weights {
+        VertexWeights::Identity => vec![1.0; n],
+        VertexWeights::Degree => {
+            if let Some(i) = degree.iter().position(|&d| d <= 0.0) {
+                return Err(Error::invalid(
+                    "graph",
+                    format!("vertex {i} has degree 0, so A = D is singular; use A = I or a larger K/σ"),
+                ));
+            }
+            degree
+        }
+    };
+    Ok(Laplacian { w: assemble_symmetric(n, entries), mass, kind: LaplacianKind::Graph })
+}
+
+/// The K nearest neighbours of every point (excluding itself): for point i, `K` pairs
+/// (squared distance, index), ascending. Exact.
+///
+/// d = 3 uses a k-d tree (kiddo); other dimensions use a parallel brute-force scan (kiddo's
+/// dimension is a compile-time constant, and k-d trees lose their edge in high dimension).
+pub fn knn(points: &PointSet, k: usize) -> Result<Vec<Vec<(f64, usize)>>> {
+    let n = points.len();
+    if k == 0 || k >= n {
+        return Err(Error::invalid("knn", format!("K = {k} neighbours needs 1 ≤ K < n = {n}")));
+    }
+    let result: Vec<Vec<(f64, usize)>> = if points.dim() == 3 {
+        let pts: Vec<[f64; 3]> = (0..n)
+            .map(|i| {
+                let p = points.point(i);
+                [p[0], p[1], p[2]]
+            })
+            .collect();
+        let tree: kiddo::ImmutableKdTree<f64, 3> = kiddo::ImmutableKdTree::new_from_slice(&pts);
+        let want = NonZero::new(k + 1).expect("k + 1 > 0");
+        pts.par_iter()
+            .enumerate()
+            .map(|(i, q)| {
+                let mut nb: Vec<(f64, usize)> = tree
+                    .nearest_n::<kiddo::SquaredEuclidean>(q, want)
+                    .into_iter()
+                    .map(|nn| (nn.distance, nn.item as usize))
+                    .filter(|&(_, j)| j != i)
+                    .collect();
+                nb.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                nb.truncate(k);
+                nb
+            })
+            .collect()
+    } else {
+        (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let p = points.point(i);
+                let mut all: Vec<(f64, usize)> = (0..n)
+                    .filter(|&j| j != i)
+                    .map(|j| (p.iter().zip(points.point(j)).map(|(a, b)| (a - b) * (a - b)).sum(), j))
+                    .collect();
+                let cmp = |a: &(f64, usize), b: &(f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+                all.select_nth_unstable_by(k - 1, cmp);
+                all.truncate(k);
+                all.sort_by(cmp);
+                all
+            })
+            .collect()
+    };
+    // With many coincident points a k-d tree query may return fewer than K others.
+    if let Some(i) = result.iter().position(|nb| nb.len() < k) {
+        return Err(Error::invalid("knn", format!("point {i} has fewer than K = {k} distinct neighbours")));
+    }
+    Ok(result)
+}
+
+/// Graph Laplacian of a point cloud or feature matrix (paper eq. (1)): the symmetric kNN graph
+/// (i ~ j when j is among the K nearest neighbours of i or vice versa) with Gaussian weights.
+///
+/// Errors: K out of range, a point whose K-th neighbour coincides with it (σᵢ = 0), a fixed σ
+/// that is not positive.
+pub fn knn_graph(points: &PointSet, opts: &KnnOptions) -> Result<Laplacian> {
+    let nbrs = knn(points, opts.k)?;
+    let n = points.len();
+    let sigma: Vec<f64> = match opts.bandwidth {
+        Bandwidth::SelfTuning => nbrs.iter().map(|nb| nb[opts.k - 1].0.sqrt()).collect(),
+        Bandwidth::Fixed(s) => {
+            if !(s.is_finite() && s > 0.0) {
+                return Err(Error::invalid("sigma", format!("σ must be positive and finite, got {s}")));
+            }
+            vec![s * std::f64::consts::SQRT_2; n] // σᵢσⱼ = 2σ²
+        }
+    };
+    if let Some(i) = sigma.iter().position(|&s| s <= 0.0) {
+        return Err(Error::invalid(
+            "points",
+            format!("point {i} coincides with its {} nearest neighbours (σ = 0); remove duplicate points", opts.k),
+        ));
+    }
+    let mut pairs: Vec<(usize, usize, f64)> =
+        nbrs.iter().enumerate().flat_map(|(i, nb)| nb.iter().map(move |&(d2, j)| (i.min(j), i.max(j), d2))).collect();
+    pairs.sort_unstable_by_key(|&(i, j, _)| (i, j));
+    pairs.dedup_by_key(|p| (p.0, p.1));
+    let edges: Vec<(usize, usize, f64)> =
+        pairs.into_iter().map(|(i, j, d2)| (i, j, (-d2 / (sigma[i] * sigma[j])).exp())).collect();
+    let mut lap = graph(n, &edges, opts.vertex_weights)?;
+    lap.kind = LaplacianKind::Knn;
+    Ok(lap)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shape::tests::square;
+
+    fn dense(w: &SparseColMat<usize, f64>) -> Vec<Vec<f64>> {
+        let n = w.nrows();
+        let mut d = vec![vec![0.0; n]; n];
+        let s = w.as_ref();
+        for c in 0..n {
+            for p in s.symbolic().col_ptr()[c]..s.symbolic().col_ptr()[c + 1] {
+                d[s.symbolic().row_idx()[p]][c] += s.val()[p];
+            }
+        }
+        d
+    }
+
+    #[test]
+    fn cotangent_of_square_matches_hand_computation() {
+        let l = cotangent(&square()).unwrap();
+        let d = dense(&l.w);
+        // Diagonal edge 0–2 is opposite two right angles: cot = 0 → weight 0.
+        assert!(d[0][2].abs() < 1e-15);
+        // Edge 0–1 is opposite a 45° angle in one triangle: w = ½ cot 45° = 0.5.
+        assert!((d[0][1] + 0.5).abs() < 1e-15, "{}", d[0][1]);
+        for row in &d {
+            assert!(row.iter().sum::<f64>().abs() < 1e-14);
+        }
+        assert!((l.mass.iter().sum::<f64>() - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn degenerate_triangles_give_finite_laplacian() {
+        // A sliver (collinear) triangle glued to a good one, plus a triangle with a repeated index.
+        let m = TriMesh::new(
+            vec![[0., 0., 0.], [1., 0., 0.], [2., 0., 0.], [1., 1., 0.]],
+            vec![[0, 1, 2], [0, 2, 3], [1, 1, 3]],
+        )
+        .unwrap();
+        let l = cotangent(&m).unwrap();
+        assert!(l.w.val().iter().all(|v| v.is_finite()));
+        assert!(l.mass.iter().all(|a| a.is_finite() && *a > 0.0));
+        for row in dense(&l.w) {
+            assert!(row.iter().sum::<f64>().abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn unreferenced_vertex_is_an_error() {
+        let m = TriMesh::new(vec![[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [5., 5., 5.]], vec![[0, 1, 2]]).unwrap();
+        let e = cotangent(&m).unwrap_err().to_string();
+        assert!(e.contains("first: 3"), "{e}");
+    }
+
+    #[test]
+    fn knn_matches_brute_force_and_graph_is_symmetric() {
+        // Deterministic pseudo-random points.
+        let mut s = 12345u64;
+        let mut r = || {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let n = 300;
+        let c3: Vec<f64> = (0..n * 3).map(|_| r()).collect();
+        let p3 = PointSet::new(n, 3, c3.clone()).unwrap();
+        // The same points padded with a zero 4th coordinate take the brute-force path.
+        let c4: Vec<f64> = c3.chunks(3).flat_map(|p| [p[0], p[1], p[2], 0.0]).collect();
+        let p4 = PointSet::new(n, 4, c4).unwrap();
+        let (a, b) = (knn(&p3, 7).unwrap(), knn(&p4, 7).unwrap());
+        for i in 0..n {
+            let ia: Vec<usize> = a[i].iter().map(|x| x.1).collect();
+            let ib: Vec<usize> = b[i].iter().map(|x| x.1).collect();
+            assert_eq!(ia, ib, "point {i}");
+        }
+        let l = knn_graph(&p3, &KnnOptions::default()).unwrap();
+        let d = dense(&l.w);
+        for i in 0..n {
+            assert!(d[i].iter().sum::<f64>().abs() < 1e-12);
+            for j in 0..n {
+                assert_eq!(d[i][j], d[j][i]);
+                if i != j {
+                    assert!(d[i][j] <= 0.0);
+                }
+            }
+        }
+        let rw = knn_graph(&p3, &KnnOptions { vertex_weights: VertexWeights::Degree, ..Default::default() }).unwrap();
+        for i in 0..n {
+            assert!((rw.mass[i] - d[i][i]).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn bad_graph_inputs_are_errors() {
+        assert!(graph(3, &[(0, 3, 1.0)], VertexWeights::Identity).is_err());
+        assert!(graph(3, &[(0, 0, 1.0)], VertexWeights::Identity).is_err());
+        assert!(graph(3, &[(0, 1, f64::NAN)], VertexWeights::Identity).is_err());
+        assert!(graph(3, &[(0, 1, 1.0)], VertexWeights::Degree).is_err());
+        let p = PointSet::new(3, 3, vec![0.0; 9]).unwrap();
+        assert!(knn_graph(&p, &KnnOptions { k: 2, ..Default::default() }).is_err());
+        assert!(knn_graph(&p, &KnnOptions { k: 5, ..Default::default() }).is_err());
+    }
+}

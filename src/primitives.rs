@@ -1,0 +1,127 @@
+//! Synthetic shapes with known spectra, for validation and tests: icospheres (eigenvalues
+//! l(l+1) on the unit sphere, multiplicity 2l+1), flat rectangles (Neumann eigenvalues
+//! π²(i²/a² + j²/b²)) and cycle graphs (2 − 2cos(2πj/n)).
+
+use std::collections::HashMap;
+
+use crate::shape::TriMesh;
+
+/// Unit icosphere: a subdivided icosahedron projected on the sphere of radius 1.
+/// `subdivisions` s gives 10·4ˢ + 2 vertices and 20·4ˢ triangles, outward oriented.
+pub fn icosphere(subdivisions: u32) -> TriMesh {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut v: Vec<[f64; 3]> = vec![
+        [-1., t, 0.],
+        [1., t, 0.],
+        [-1., -t, 0.],
+        [1., -t, 0.],
+        [0., -1., t],
+        [0., 1., t],
+        [0., -1., -t],
+        [0., 1., -t],
+        [t, 0., -1.],
+        [t, 0., 1.],
+        [-t, 0., -1.],
+        [-t, 0., 1.],
+    ];
+    let mut f: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    let normalize = |p: [f64; 3]| {
+        let l = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+        [p[0] / l, p[1] / l, p[2] / l]
+    };
+    v.iter_mut().for_each(|p| *p = normalize(*p));
+    for _ in 0..subdivisions {
+        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut nf = Vec::with_capacity(f.len() * 4);
+        let mut midpoint = |a: u32, b: u32, v: &mut Vec<[f64; 3]>| -> u32 {
+            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                let (p, q) = (v[a as usize], v[b as usize]);
+                v.push(normalize([(p[0] + q[0]) / 2., (p[1] + q[1]) / 2., (p[2] + q[2]) / 2.]));
+                (v.len() - 1) as u32
+            })
+        };
+        for [a, b, c] in f {
+            let (ab, bc, ca) = (midpoint(a, b, &mut v), midpoint(b, c, &mut v), midpoint(c, a, &mut v));
+            nf.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        f = nf;
+    }
+    TriMesh::new(v, f).expect("icosphere is valid")
+}
+
+/// Flat rectangle [0, a] × [0, b] in the plane z = 0, triangulated on a regular grid of
+/// nx × ny cells ((nx+1)(ny+1) vertices), each cell split along alternating diagonals.
+pub fn rectangle(a: f64, b: f64, nx: u32, ny: u32) -> TriMesh {
+    let mut v = Vec::with_capacity(((nx + 1) * (ny + 1)) as usize);
+    for j in 0..=ny {
+        for i in 0..=nx {
+            v.push([a * i as f64 / nx as f64, b * j as f64 / ny as f64, 0.0]);
+        }
+    }
+    let id = |i: u32, j: u32| j * (nx + 1) + i;
+    let mut f = Vec::with_capacity((2 * nx * ny) as usize);
+    for j in 0..ny {
+        for i in 0..nx {
+            let (p00, p10, p01, p11) = (id(i, j), id(i + 1, j), id(i, j + 1), id(i + 1, j + 1));
+            if (i + j) % 2 == 0 {
+                f.extend([[p00, p10, p11], [p00, p11, p01]]);
+            } else {
+                f.extend([[p00, p10, p01], [p10, p11, p01]]);
+            }
+        }
+    }
+    TriMesh::new(v, f).expect("rectangle is valid")
+}
+
+/// Edges of the cycle graph on n vertices, with unit weights.
+pub fn cycle_edges(n: usize) -> Vec<(usize, usize, f64)> {
+    (0..n).map(|i| (i, (i + 1) % n, 1.0)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn icosphere_counts_and_radius() {
+        let s = icosphere(2);
+        assert_eq!(s.n_vertices(), 162);
+        assert_eq!(s.n_faces(), 320);
+        assert!(s.vertices().iter().all(|p| ((p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 1.0).abs() < 1e-14));
+        assert!(s.boundary_loops().is_empty());
+        assert_eq!(s.components().0, 1);
+        // Outward orientation: normals point away from the centre.
+        let n = s.vertex_normals();
+        assert!(s.vertices().iter().zip(&n).all(|(p, q)| p[0] * q[0] + p[1] * q[1] + p[2] * q[2] > 0.9));
+    }
+
+    #[test]
+    fn rectangle_area() {
+        let r = rectangle(2.0, 1.0, 10, 5);
+        assert_eq!(r.n_vertices(), 66);
+        assert!((r.total_area() - 2.0).abs() < 1e-13);
+        assert_eq!(r.boundary_loops().len(), 1);
+        assert_eq!(r.boundary_loops()[0].len(), 30);
+    }
+}

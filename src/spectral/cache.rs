@@ -1,0 +1,203 @@
+//! Basis files (`.npz`, readable by numpy) and an on-disk cache of eigenbases.
+//!
+//! A basis file holds `eigenvalues` (k), `eigenvectors` (n × k, f64, C order), `mass` (n) and
+//! `residuals` (k): `np.load("basis.npz")["eigenvectors"]` is Φ.
+//!
+//! The cache is keyed by a hash of the Laplacian itself (the bits of W and A), so any two runs
+//! that build the same operator — whatever file, format or options they came from — share the
+//! basis; a cached basis with k' ≥ k eigenpairs serves a request for k by truncation.
+
+use std::path::{Path, PathBuf};
+
+use faer::Mat;
+
+use super::Basis;
+use crate::error::{Error, Result};
+use crate::io::npy::{read_npz, write_npz, NpzArray};
+use crate::laplacian::Laplacian;
+
+/// Writes `basis` to `path` as an uncompressed `.npz` (see the module documentation).
+pub fn save_basis(path: &Path, basis: &Basis) -> Result<()> {
+    let (n, k) = (basis.n(), basis.k());
+    // C order: row i holds φ₁(i) … φ_k(i).
+    let mut phi = Vec::with_capacity(n * k);
+    for i in 0..n {
+        phi.extend((0..k).map(|j| basis.eigenvectors[(i, j)]));
+    }
+    write_npz(
+        path,
+        &[
+            ("eigenvalues", NpzArray::F64 { shape: vec![k], data: basis.eigenvalues.clone() }),
+            ("eigenvectors", NpzArray::F64 { shape: vec![n, k], data: phi }),
+            ("mass", NpzArray::F64 { shape: vec![n], data: basis.mass.clone() }),
+            ("residuals", NpzArray::F64 { shape: vec![k], data: basis.residuals.clone() }),
+        ],
+    )
+}
+
+/// Reads a basis written by [`save_basis`] (or by numpy with the same arrays; `residuals` is
+/// optional). Errors name the file and the array that is missing, misshapen or not finite.
+pub fn load_basis(path: &Path) -> Result<Basis> {
+    let arrays = read_npz(path)?;
+    let get = |name: &str| -> Result<(&[usize], &[f64])> {
+        match arrays.iter().find(|(n, _)| n == name) {
+            Some((_, NpzArray::F64 { shape, data })) => {
+                if let Some(p) = data.iter().position(|v| !v.is_finite()) {
+                    return Err(Error::parse(path, None, format!("array '{name}' has a non-finite value at {p}")));
+                }
+                Ok((shape, data))
+            }
+            Some(_) => Err(Error::parse(path, None, format!("array '{name}' must be floating point"))),
+            None => Err(Error::parse(path, None, format!("no array '{name}' (is this a funcorr basis file?)"))),
+        }
+    };
+    let (s_val, val) = get("eigenvalues")?;
+    let (s_vec, vec) = get("eigenvectors")?;
+    let (s_mass, mass) = get("mass")?;
+    let k = val.len();
+    let n = mass.len();
+    if s_val.len() != 1 || s_mass.len() != 1 || s_vec != [n, k] || k == 0 {
+        return Err(Error::parse(
+            path,
+            None,
+            format!(
+                "inconsistent shapes: eigenvalues {s_val:?}, eigenvectors {s_vec:?}, mass {s_mass:?} (want k, n×k, n)"
+            ),
+        ));
+    }
+    let residuals = match get("residuals") {
+        Ok((s, r)) if s == [k] => r.to_vec(),
+        Ok((s, _)) => return Err(Error::parse(path, None, format!("residuals has shape {s:?}, want [{k}]"))),
+        Err(_) => vec![f64::NAN; k],
+    };
+    Ok(Basis {
+        eigenvalues: val.to_vec(),
+        eigenvectors: Mat::from_fn(n, k, |i, j| vec[i * k + j]),
+        mass: mass.to_vec(),
+        residuals,
+    })
+}
+
+/// A directory of cached bases, `<key>-k<K>.npz`.
+#[derive(Debug, Clone)]
+pub struct BasisCache {
+    dir: PathBuf,
+}
+
+/// FNV-1a, 64 bit: a stable hash (std's hashers may change between Rust releases).
+struct Fnv(u64);
+
+impl Fnv {
+    fn write(&mut self, bytes: &[u8]) {
+        for b in bytes {
+            self.0 ^= u64::from(*b);
+            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+}
+
+impl BasisCache {
+    /// A cache in `dir` (created on first write).
+    pub fn new(dir: impl Into<PathBuf>) -> Self {
+        BasisCache { dir: dir.into() }
+    }
+
+    /// `$FUNCORR_CACHE_DIR`, else `$XDG_CACHE_HOME/funcorr`, else `$HOME/.cache/funcorr`.
+    pub fn default_dir() -> Option<PathBuf> {
+        let env = |v: &str| std::env::var_os(v).filter(|s| !s.is_empty()).map(PathBuf::from);
+        env("FUNCORR_CACHE_DIR")
+            .or_else(|| env("XDG_CACHE_HOME").map(|p| p.join("funcorr")))
+            .or_else(|| env("HOME").map(|p| p.join(".cache").join("funcorr")))
+    }
+
+    /// The cache directory.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Key of a Laplacian: a hash of n, the sparsity pattern and values of W, and A.
+    pub fn key(lap: &Laplacian) -> String {
+        let mut h = Fnv(0xcbf2_9ce4_8422_2325);
+        let w = lap.w.as_ref();
+        h.write(&(lap.n() as u64).to_le_bytes());
+        for &c in w.symbolic().col_ptr() {
+            h.write(&(c as u64).to_le_bytes());
+        }
+        for &r in w.symbolic().row_idx() {
+            h.write(&(r as u64).to_le_bytes());
+        }
+        for v in w.val().iter().chain(&lap.mass) {
+            h.write(&v.to_bits().to_le_bytes());
+        }
+        format!("{:016x}", h.0)
+    }
+
+    /// The cached basis for `key` with the fewest eigenpairs k' ≥ k, truncated to k.
+    /// Unreadable or mismatched files are ignored (and recomputed by the caller).
+    pub fn get(&self, key: &str, n: usize, k: usize) -> Option<Basis> {
+        let prefix = format!("{key}-k");
+        let mut best: Option<(usize, PathBuf)> = None;
+        for entry in std::fs::read_dir(&self.dir).ok()?.flatten() {
+            let name = entry.file_name().to_string_lossy().into_owned();
+            let Some(kk) = name.strip_prefix(&prefix).and_then(|r| r.strip_suffix(".npz")).and_then(|s| s.parse().ok())
+            else {
+                continue;
+            };
+            if kk >= k && best.as_ref().is_none_or(|(b, _)| kk < *b) {
+                best = Some((kk, entry.path()));
+            }
+        }
+        let basis = load_basis(&best?.1).ok()?;
+        if basis.n() != n {
+            return None;
+        }
+        basis.truncate(k).ok()
+    }
+
+    /// Stores `basis` under `key`.
+    pub fn put(&self, key: &str, basis: &Basis) -> Result<()> {
+        std::fs::create_dir_all(&self.dir).map_err(|e| Error::io(&self.dir, e))?;
+        save_basis(&self.dir.join(format!("{key}-k{}.npz", basis.k())), basis)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::laplacian::cotangent;
+    use crate::primitives::icosphere;
+    use crate::spectral::{eigen_basis, SpectralOptions};
+
+    #[test]
+    fn basis_round_trip_and_cache() {
+        let lap = cotangent(&icosphere(2)).unwrap();
+        let (b, _) = eigen_basis(&lap, &SpectralOptions::new(12), None).unwrap();
+        let dir = std::env::temp_dir().join(format!("funcorr-cache-test-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let file = dir.join("b.npz");
+        std::fs::create_dir_all(&dir).unwrap();
+        save_basis(&file, &b).unwrap();
+        let r = load_basis(&file).unwrap();
+        assert_eq!(r.eigenvalues, b.eigenvalues);
+        assert_eq!(r.mass, b.mass);
+        assert_eq!(r.eigenvectors, b.eigenvectors);
+
+        let cache = BasisCache::new(dir.join("cache"));
+        let key = BasisCache::key(&lap);
+        assert!(cache.get(&key, lap.n(), 5).is_none());
+        cache.put(&key, &b).unwrap();
+        let t = cache.get(&key, lap.n(), 5).unwrap();
+        assert_eq!(t.k(), 5);
+        assert_eq!(t.eigenvalues[..], b.eigenvalues[..5]);
+        assert!(cache.get(&key, lap.n(), 13).is_none(), "cannot serve more eigenpairs than stored");
+        assert!(cache.get(&key, lap.n() + 1, 5).is_none());
+        // A different Laplacian has a different key.
+        let other = cotangent(&icosphere(1)).unwrap();
+        assert_ne!(BasisCache::key(&other), key);
+        // A corrupt file is ignored, not an error.
+        std::fs::write(cache.dir().join(format!("{key}-k20.npz")), b"garbage").unwrap();
+        assert!(cache.get(&key, lap.n(), 13).is_none());
+        assert!(load_basis(&cache.dir().join(format!("{key}-k20.npz"))).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,420 @@
+//! Block Lanczos with full reorthogonalization and thick restart, in shift-invert mode, for the
+//! low end of the spectrum of W φ = λ A φ. See the documentation of [`crate::spectral`].
+
+use std::time::Instant;
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::matmul::matmul;
+use faer::reborrow::{Reborrow, ReborrowMut};
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+};
+use faer::sparse::linalg::SupernodalThreshold;
+use faer::sparse::SparseColMatRef;
+use faer::{Accum, Conj, Mat, MatMut, MatRef, Par, Side};
+use rayon::prelude::*;
+
+use super::{Normal, Progress, SolveInfo, SpectralOptions};
+use crate::error::{Error, Result};
+use crate::laplacian::Laplacian;
+
+/// Parallelism handed to faer for the one-off sparse factorization.
+fn par() -> Par {
+    Par::rayon(0)
+}
+
+/// Rows per task of the tall-skinny products below.
+const ROW_CHUNK: usize = 4096;
+
+// The Krylov basis is tall and skinny (n × p with p ≪ n) and the blocks are thin (b columns).
+// faer's parallel GEMM spreads such products over threads that spin at barriers, which on a
+// 2-core machine (or any busy one) costs more than it gains: measured 4× slower than
+// sequential on a 52k-vertex mesh under load. We split the long dimension n into row chunks
+// ourselves with rayon (whose idle workers sleep) and run faer's sequential GEMM per chunk;
+// partial sums are added in chunk order, so results do not depend on the thread count.
+
+/// Vᵀ W (p × b) for V (n × p), W (n × b).
+fn gemm_tn(v: MatRef<f64>, w: MatRef<f64>) -> Mat<f64> {
+    let n = v.nrows();
+    let starts: Vec<usize> = (0..n).step_by(ROW_CHUNK).collect();
+    let partials: Vec<Mat<f64>> = starts
+        .par_iter()
+        .map(|&r0| {
+            let len = ROW_CHUNK.min(n - r0);
+            let mut c = Mat::<f64>::zeros(v.ncols(), w.ncols());
+            matmul(c.as_mut(), Accum::Replace, v.subrows(r0, len).transpose(), w.subrows(r0, len), 1.0, Par::Seq);
+            c
+        })
+        .collect();
+    let mut sum = Mat::<f64>::zeros(v.ncols(), w.ncols());
+    for c in &partials {
+        sum += c;
+    }
+    sum
+}
+
+/// dst ← (dst if accumulate) + alpha · V C, for V (n × p), C (p × q), dst (n × q).
+fn gemm_nn(dst: MatMut<f64>, accumulate: bool, v: MatRef<f64>, c: MatRef<f64>, alpha: f64) {
+    let accum = if accumulate { Accum::Add } else { Accum::Replace };
+    dst.par_row_chunks_mut(ROW_CHUNK).enumerate().for_each(|(i, chunk)| {
+        let rows = chunk.nrows();
+        matmul(chunk, accum, v.subrows(i * ROW_CHUNK, rows), c, alpha, Par::Seq);
+    });
+}
+
+/// Sparse Cholesky factor L Lᵀ = P (W + sA) Pᵀ (AMD ordering), always *supernodal*: faer's
+/// automatic choice picks the simplicial variant for mesh Laplacians, whose triangular solves
+/// run one column at a time; the supernodal solves work on dense blocks with all b
+/// right-hand sides at once, which is what the block Lanczos method needs.
+struct SparseLlt {
+    symbolic: SymbolicCholesky<usize>,
+    values: Vec<f64>,
+}
+
+impl SparseLlt {
+    fn new(mat: SparseColMatRef<usize, f64>) -> std::result::Result<Self, String> {
+        let params = CholeskySymbolicParams {
+            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+            ..Default::default()
+        };
+        let symbolic = factorize_symbolic_cholesky(mat.symbolic(), Side::Lower, SymmetricOrdering::Amd, params)
+            .map_err(|e| format!("{e:?}"))?;
+        let mut values = vec![0.0; symbolic.len_val()];
+        let mut buf = MemBuffer::new(symbolic.factorize_numeric_llt_scratch::<f64>(par(), Default::default()));
+        symbolic
+            .factorize_numeric_llt(
+                &mut values,
+                mat,
+                Side::Lower,
+                Default::default(),
+                par(),
+                MemStack::new(&mut buf),
+                Default::default(),
+            )
+            .map_err(|e| format!("{e:?}"))?;
+        Ok(SparseLlt { symbolic, values })
+    }
+
+    /// x ← (W + sA)⁻¹ x for an n × b block.
+    fn solve_in_place(&self, x: MatMut<f64>) {
+        let mut buf = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(x.ncols(), Par::Seq));
+        LltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(
+            Conj::No,
+            x,
+            Par::Seq,
+            MemStack::new(&mut buf),
+        );
+    }
+}
+
+/// The shift-invert operator Op = A^{1/2} (W + sA)⁻¹ A^{1/2}.
+struct ShiftInvert<'a> {
+    llt: SparseLlt,
+    sqrt_m: &'a [f64],
+}
+
+impl ShiftInvert<'_> {
+    /// out = Op x, for an n × b block.
+    fn apply(&self, x: MatRef<f64>, mut out: MatMut<f64>) {
+        out.copy_from(x);
+        scale_rows(out.rb_mut(), self.sqrt_m);
+        self.llt.solve_in_place(out.rb_mut());
+        scale_rows(out.rb_mut(), self.sqrt_m);
+    }
+}
+
+fn scale_rows(mut x: MatMut<f64>, s: &[f64]) {
+    for j in 0..x.ncols() {
+        let mut c = x.rb_mut().col_mut(j);
+        for (i, si) in s.iter().enumerate() {
+            c[i] *= si;
+        }
+    }
+}
+
+/// Factors W + sA with a shift s > 0 small against the low end of the spectrum. s starts at
+/// 1e-6 · tr(W)/tr(A) (tr(W)/tr(A) is the mean of the spectrum, so s is far below the
+/// eigenvalues we want on any mesh or graph of more than a few hundred vertices, yet keeps the
+/// matrix safely definite) and grows tenfold if the factorization reports a non-positive pivot.
+fn factor<'a>(lap: &Laplacian, sqrt_m: &'a [f64]) -> Result<(ShiftInvert<'a>, f64)> {
+    let w = lap.w.as_ref();
+    let trace_w: f64 = (0..lap.n())
+        .map(|c| {
+            let rows = &w.symbolic().row_idx()[w.symbolic().col_ptr()[c]..w.symbolic().col_ptr()[c + 1]];
+            let vals = &w.val()[w.symbolic().col_ptr()[c]..w.symbolic().col_ptr()[c + 1]];
+            rows.iter().zip(vals).filter(|(r, _)| **r == c).map(|(_, v)| *v).sum::<f64>()
+        })
+        .sum();
+    let trace_a: f64 = lap.mass.iter().sum();
+    let mut s = 1e-6 * trace_w / trace_a;
+    if !(s.is_finite() && s > 0.0) {
+        return Err(Error::invalid("W", "the stiffness matrix has no positive diagonal (no edges?)"));
+    }
+    let mut last_err = String::new();
+    for _ in 0..6 {
+        let mut k_mat = lap.w.clone();
+        {
+            let sym = lap.w.symbolic();
+            let (cp, ri) = (sym.col_ptr().to_vec(), sym.row_idx().to_vec());
+            let vals = k_mat.val_mut();
+            for c in 0..lap.n() {
+                for p in cp[c]..cp[c + 1] {
+                    if ri[p] == c {
+                        vals[p] += s * lap.mass[c];
+                    }
+                }
+            }
+        }
+        match SparseLlt::new(k_mat.as_ref()) {
+            Ok(llt) => return Ok((ShiftInvert { llt, sqrt_m }, s)),
+            Err(e) => {
+                last_err = e;
+                s *= 10.0;
+            }
+        }
+    }
+    Err(Error::numerical("eigensolver", format!("Cholesky factorization of W + sA failed: {last_err}")))
+}
+
+/// Euclidean norm of a slice.
+fn norm(x: &[f64]) -> f64 {
+    x.iter().map(|v| v * v).sum::<f64>().sqrt()
+}
+
+/// Orthogonalizes the columns of `w` (n × b) against the orthonormal columns of `v` (n × j)
+/// with two passes of block classical Gram–Schmidt, accumulating the coefficients into `c` (j × b).
+fn project_out(v: MatRef<f64>, mut w: MatMut<f64>, mut c: MatMut<f64>) {
+    c.fill(0.0);
+    for _pass in 0..2 {
+        let coef = gemm_tn(v, w.rb());
+        gemm_nn(w.rb_mut(), true, v, coef.as_ref(), -1.0);
+        c += &coef;
+    }
+}
+
+/// Column j of a column-major view as a slice.
+fn col(m: MatRef<'_, f64>, j: usize) -> &[f64] {
+    m.col(j).try_as_col_major().expect("faer matrices are column-major").as_slice()
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// Orthonormalizes the block `w` (n × b, already orthogonal to `v`) in place: w = Q β with β
+/// upper triangular (b × b), by modified Gram–Schmidt applied twice. A column that is
+/// (numerically) in the span of the previous ones (norm below 1e-10 of its norm before
+/// projection) is replaced by a fresh random direction orthogonal to everything, with a zero
+/// diagonal in β.
+fn orthonormalize_block(v: MatRef<f64>, w: &mut Mat<f64>, norms_before: &[f64], rng: &mut Normal) -> Mat<f64> {
+    let (n, b) = (w.nrows(), w.ncols());
+    let mut beta = Mat::<f64>::zeros(b, b);
+    for i in 0..b {
+        let (done, mut rest) = w.as_mut().split_at_col_mut(i);
+        let done = done.rb();
+        let wi = rest.rb_mut().col_mut(0).try_as_col_major_mut().expect("column-major").as_slice_mut();
+        for _pass in 0..2 {
+            for l in 0..i {
+                let q = col(done, l);
+                let d = dot(q, wi);
+                beta[(l, i)] += d;
+                wi.iter_mut().zip(q).for_each(|(x, y)| *x -= d * y);
+            }
+        }
+        let nrm = norm(wi);
+        if nrm > 0.0 && nrm > 1e-10 * norms_before[i] {
+            beta[(i, i)] = nrm;
+            wi.iter_mut().for_each(|x| *x /= nrm);
+        } else {
+            // Deflation: the Krylov space lost a direction; continue with a random one.
+            let mut fresh = Mat::<f64>::from_fn(n, 1, |_, _| rng.sample());
+            let mut c = Mat::<f64>::zeros(v.ncols(), 1);
+            project_out(v, fresh.as_mut(), c.as_mut());
+            let f = fresh.col_as_slice_mut(0);
+            for _pass in 0..2 {
+                for l in 0..i {
+                    let q = col(done, l);
+                    let d = dot(q, f);
+                    f.iter_mut().zip(q).for_each(|(x, y)| *x -= d * y);
+                }
+            }
+            let fnorm = norm(f);
+            wi.iter_mut().zip(f.iter()).for_each(|(x, y)| *x = y / fnorm);
+            beta[(i, i)] = 0.0;
+        }
+    }
+    beta
+}
+
+/// Block Lanczos with full reorthogonalization and thick restart for the k largest eigenvalues
+/// θ of Op. Returns (λ = 1/θ − s ascending, U n × k orthonormal).
+pub(super) fn lanczos(
+    lap: &Laplacian,
+    sqrt_m: &[f64],
+    opts: &SpectralOptions,
+    progress: Option<Progress>,
+) -> Result<(Vec<f64>, Mat<f64>, SolveInfo)> {
+    let n = lap.n();
+    let k = opts.k;
+    let t0 = Instant::now();
+    let (op, shift) = factor(lap, sqrt_m)?;
+    let factor_seconds = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+
+    let b = opts.block_size.unwrap_or(if k <= 24 { 8 } else { 16 }).max(1);
+    // Maximum basis size: about 2k (as ARPACK's default ncv), at least k + 4b.
+    let pmax = (2 * k).max(k + 4 * b).div_ceil(b) * b;
+    if pmax + b > n {
+        return Err(Error::invalid(
+            "k",
+            format!("k = {k} is too large for the iterative solver on n = {n} vertices (needs n > {}); ask for fewer eigenpairs", pmax + b),
+        ));
+    }
+    // Ritz vectors kept at a restart, so that pmax − keep is a whole number of blocks.
+    let keep = pmax - (pmax - (k + (pmax - k) / 3).min(pmax - 2 * b)).div_ceil(b) * b;
+
+    let mut rng = Normal::new(opts.seed);
+    let mut v = Mat::<f64>::zeros(n, pmax + b);
+    let mut h = Mat::<f64>::zeros(pmax + b, pmax + b);
+    // Start block.
+    {
+        let mut w = Mat::<f64>::from_fn(n, b, |_, _| rng.sample());
+        let norms: Vec<f64> = (0..b).map(|j| norm(w.col_as_slice(j))).collect();
+        let empty = Mat::<f64>::zeros(n, 0);
+        orthonormalize_block(empty.as_ref(), &mut w, &norms, &mut rng);
+        v.subcols_mut(0, b).copy_from(&w);
+    }
+    let mut p = 0usize; // columns of V whose Op-image has been projected
+    let mut info = SolveInfo {
+        method: "block-lanczos".into(),
+        shift,
+        block_size: b,
+        max_basis: pmax,
+        factor_seconds,
+        ..Default::default()
+    };
+    let mut w = Mat::<f64>::zeros(n, b);
+    let mut tol = opts.tol;
+    loop {
+        // Expand the Krylov basis up to pmax columns.
+        while p < pmax {
+            let (j0, j1) = (p, p + b);
+            op.apply(v.subcols(j0, b), w.as_mut());
+            info.operator_applications += b;
+            let norms: Vec<f64> = (0..b).map(|j| norm(w.col_as_slice(j))).collect();
+            let mut c = Mat::<f64>::zeros(j1, b);
+            project_out(v.subcols(0, j1), w.as_mut(), c.as_mut());
+            let beta = orthonormalize_block(v.subcols(0, j1), &mut w, &norms, &mut rng);
+            h.submatrix_mut(0, j0, j1, b).copy_from(&c);
+            h.submatrix_mut(j1, j0, b, b).copy_from(&beta);
+            v.subcols_mut(j1, b).copy_from(&w);
+            p = j1;
+        }
+        // Rayleigh–Ritz on the symmetrized projected matrix.
+        let mut hs = Mat::<f64>::zeros(p, p);
+        for j in 0..p {
+            for i in 0..p {
+                hs[(i, j)] = 0.5 * (h[(i, j)] + h[(j, i)]);
+            }
+        }
+        let evd = hs
+            .self_adjoint_eigen(Side::Lower)
+            .map_err(|e| Error::numerical("eigensolver", format!("Ritz eigenproblem failed: {e:?}")))?;
+        // Descending θ: column p−1−i of the ascending decomposition.
+        let theta: Vec<f64> = (0..p).map(|i| evd.S()[p - 1 - i]).collect();
+        let y = Mat::<f64>::from_fn(p, p, |r, c| evd.U()[(r, p - 1 - c)]);
+        // Residuals. The block Lanczos relation Op V = V H + V_next β Eᵀ gives, for a Ritz pair
+        // (θ, u = V y), Op u − θu = V_next β y_last, and multiplying by (L̃ + s):
+        //   (L̃ − λ) u = −(L̃ + s) V_next β y_last / θ,   λ = 1/θ − s.
+        // With G = (L̃ + s) V_next β (n × b, b sparse products) the true residual of every pair is
+        // ‖G y_last‖/θ = √(y_lastᵀ (GᵀG) y_last)/θ: the same measure as the final verification,
+        // unlike ‖β y_last‖, which can underestimate it by orders of magnitude.
+        let beta_last = h.submatrix(p, p - b, b, b).to_owned();
+        let mut g = Mat::<f64>::zeros(n, b);
+        for j in 0..b {
+            let x: Vec<f64> = col(v.as_ref(), p + j).iter().zip(sqrt_m).map(|(x, s)| x / s).collect();
+            let wx = lap.apply_w(&x);
+            for (i, gi) in g.col_as_slice_mut(j).iter_mut().enumerate() {
+                *gi = (wx[i] / sqrt_m[i]) + shift * col(v.as_ref(), p + j)[i];
+            }
+        }
+        let g = {
+            let mut gb = Mat::<f64>::zeros(n, b);
+            gemm_nn(gb.as_mut(), false, g.as_ref(), beta_last.as_ref(), 1.0);
+            gb
+        };
+        let gram = gemm_tn(g.as_ref(), g.as_ref());
+        let lambda_ref = (1.0 / theta[k - 1] - shift).abs().max(f64::MIN_POSITIVE);
+        let resid: Vec<f64> = (0..k)
+            .map(|i| {
+                let yl = y.submatrix(p - b, i, b, 1);
+                let q = yl.transpose() * &gram * yl;
+                q[(0, 0)].max(0.0).sqrt() / theta[i] / lambda_ref
+            })
+            .collect();
+        let converged = (0..k).take_while(|&i| theta[i] > 0.0 && resid[i] <= tol).count();
+        if let Some(cb) = progress {
+            cb(converged, k);
+        }
+        if std::env::var_os("FUNCORR_DEBUG_LANCZOS").is_some() {
+            let worst = resid.iter().copied().fold(0.0, f64::max);
+            eprintln!("restart {} p {p} converged {converged}/{k} worst {worst:.2e} tol {tol:.1e}", info.restarts);
+        }
+        if converged == k {
+            let mut u = Mat::<f64>::zeros(n, k);
+            gemm_nn(u.as_mut(), false, v.subcols(0, p), y.subcols(0, k), 1.0);
+            let lambda: Vec<f64> = (0..k).map(|i| 1.0 / theta[i] - shift).collect();
+            // Verify explicitly; if round-off made the estimate optimistic, tighten once and go on.
+            if tol >= opts.tol && !residuals_ok(lap, sqrt_m, &u, &lambda, opts.max_residual) {
+                tol *= 0.1;
+            } else {
+                info.iterate_seconds = t1.elapsed().as_secs_f64();
+                return Ok((lambda, u, info));
+            }
+        }
+        if info.restarts >= opts.max_restarts {
+            return Err(Error::numerical(
+                "eigensolver",
+                format!(
+                    "only {converged} of {k} eigenpairs converged after {} restarts (tol {:.1e})",
+                    info.restarts, tol
+                ),
+            ));
+        }
+        // Thick restart: keep the `keep` leading Ritz vectors and the residual block.
+        info.restarts += 1;
+        let mut kept = Mat::<f64>::zeros(n, keep);
+        gemm_nn(kept.as_mut(), false, v.subcols(0, p), y.subcols(0, keep), 1.0);
+        let resid_block = v.subcols(p, b).to_owned();
+        v.subcols_mut(0, keep).copy_from(&kept);
+        v.subcols_mut(keep, b).copy_from(&resid_block);
+        h.fill(0.0);
+        for i in 0..keep {
+            h[(i, i)] = theta[i];
+        }
+        // Coupling of the residual block to the kept Ritz vectors: β_last · Y[last block, :keep].
+        let mut coupling = Mat::<f64>::zeros(b, keep);
+        matmul(coupling.as_mut(), Accum::Replace, beta_last.as_ref(), y.submatrix(p - b, 0, b, keep), 1.0, Par::Seq);
+        h.submatrix_mut(keep, 0, b, keep).copy_from(&coupling);
+        p = keep;
+    }
+}
+
+/// Checks ‖L̃u − λu‖ / λ_max ≤ max_res for the Ritz vectors U (n × k) in the symmetric form.
+fn residuals_ok(lap: &Laplacian, sqrt_m: &[f64], u: &Mat<f64>, lambda: &[f64], max_res: f64) -> bool {
+    let lam_max = lambda.last().copied().unwrap_or(0.0).abs().max(f64::MIN_POSITIVE);
+    (0..u.ncols()).all(|j| {
+        let phi: Vec<f64> = u.col_as_slice(j).iter().zip(sqrt_m).map(|(x, s)| x / s).collect();
+        let wphi = lap.apply_w(&phi);
+        let r2: f64 = wphi
+            .iter()
+            .zip(&phi)
+            .zip(&lap.mass)
+            .map(|((w, p), a)| {
+                let r = w - lambda[j] * a * p;
+                r * r / a
+            })
+            .sum();
+        r2.sqrt() / lam_max <= max_res
+    })
+}
