@@ -111,6 +111,20 @@ struct SpectrumArgs {
     quiet: bool,
 }
 
+/// `println!` that ends the program quietly when stdout is closed early (`funcorr … | head`),
+/// as a well-behaved Unix filter does, instead of panicking.
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write;
+        if let Err(e) = writeln!(std::io::stdout().lock(), $($arg)*) {
+            if e.kind() == std::io::ErrorKind::BrokenPipe {
+                std::process::exit(0);
+            }
+            return Err(Error::io("<stdout>", e));
+        }
+    }};
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -164,14 +178,14 @@ fn info(path: &Path, json: bool) -> Result<()> {
     if json {
         let obj: serde_json::Map<String, serde_json::Value> =
             facts.into_iter().map(|(k, v)| (k.to_string(), v)).collect();
-        println!("{}", serde_json::to_string_pretty(&obj).expect("JSON of plain values"));
+        outln!("{}", serde_json::to_string_pretty(&obj).expect("JSON of plain values"));
     } else {
         for (key, value) in facts {
             let text = match value {
                 serde_json::Value::String(s) => s.clone(),
                 other => other.to_string(),
             };
-            println!("{:<22} {text}", key.replace('_', " "));
+            outln!("{:<22} {text}", key.replace('_', " "));
         }
     }
     Ok(())
@@ -265,7 +279,7 @@ fn spectrum(args: &SpectrumArgs) -> Result<()> {
         Some(out) => st.run("write", || spectral::save_basis(out, &basis))?,
         None => {
             for l in &basis.eigenvalues {
-                println!("{l:.17e}");
+                outln!("{l:.17e}");
             }
         }
     }
@@ -303,7 +317,7 @@ const DEMO_Y: (&str, &[u8]) = ("tr_reg_001.off", include_bytes!("../data/faust/t
 
 fn demo(out: &Path, k: usize) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    println!("funcorr demo: two FAUST humans (same subject, different poses), k = {k} eigenpairs\n");
+    outln!("funcorr demo: two FAUST humans (same subject, different poses), k = {k} eigenpairs\n");
     let mut bases: Vec<(f64, Basis)> = Vec::new();
     for (name, bytes) in [DEMO_X, DEMO_Y] {
         let t = Instant::now();
@@ -313,7 +327,7 @@ fn demo(out: &Path, k: usize) -> Result<()> {
             Shape::Points(_) => return Err(Error::invalid("demo data", "expected a mesh")),
         };
         let t_read = t.elapsed().as_secs_f64();
-        println!(
+        outln!(
             "{name}: {} vertices, {} faces, area {:.4} m², {} component(s), {} boundary loop(s), {} degenerate face(s)",
             mesh.n_vertices(),
             mesh.n_faces(),
@@ -331,7 +345,7 @@ fn demo(out: &Path, k: usize) -> Result<()> {
         pb.finish_and_clear();
         let file = out.join(name.replace(".off", ".basis.npz"));
         spectral::save_basis(&file, &basis)?;
-        println!(
+        outln!(
             "  read {t_read:.3} s, Laplacian {t_lap:.3} s, eigenbasis {:.3} s ({} restarts), max residual {:.1e} -> {}",
             info.factor_seconds + info.iterate_seconds,
             info.restarts,
@@ -341,12 +355,12 @@ fn demo(out: &Path, k: usize) -> Result<()> {
         bases.push((mesh.total_area(), basis));
     }
     let ((area_x, x), (area_y, y)) = (&bases[0], &bases[1]);
-    println!("\nNear-isometric shapes have nearly equal scale-free spectra λ_i · area:");
-    println!("{:>4} {:>14} {:>14} {:>10}", "i", "λ_i(X)·area", "λ_i(Y)·area", "rel. diff");
+    outln!("\nNear-isometric shapes have nearly equal scale-free spectra λ_i · area:");
+    outln!("{:>4} {:>14} {:>14} {:>10}", "i", "λ_i(X)·area", "λ_i(Y)·area", "rel. diff");
     for i in (1..11).chain([k / 2, k - 1]).filter(|&i| i < k) {
         let (a, b) = (x.eigenvalues[i] * area_x, y.eigenvalues[i] * area_y);
-        println!("{i:>4} {a:>14.6} {b:>14.6} {:>9.2}%", 100.0 * (a - b).abs() / a.max(b));
+        outln!("{i:>4} {a:>14.6} {b:>14.6} {:>9.2}%", 100.0 * (a - b).abs() / a.max(b));
     }
-    println!("\nwrote {}", out.display());
+    outln!("\nwrote {}", out.display());
     Ok(())
 }

@@ -1,0 +1,209 @@
+//! End-to-end tests of the `funcorr` binary on the bundled data.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use funcorr::io::npy::{read_npz, NpzArray};
+use funcorr::spectral::load_basis;
+
+const BIN: &str = env!("CARGO_BIN_EXE_funcorr");
+
+fn data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/faust").join(name)
+}
+
+/// A fresh temporary directory for one test.
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("funcorr-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn run(args: &[&str]) -> Output {
+    Command::new(BIN)
+        .args(args)
+        .env("FUNCORR_CACHE_DIR", std::env::temp_dir().join("funcorr-cli-cache"))
+        .output()
+        .unwrap()
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+/// Asserts a clean failure: exit code 1, an error line naming `needle`, no panic.
+fn assert_fails(out: &Output, needle: &str) {
+    let err = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "stderr: {err}");
+    assert!(err.contains("funcorr: error:") && err.contains(needle), "stderr lacks {needle:?}: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn info_reports_mesh_facts() {
+    let f = data("tr_reg_000.off");
+    let out = run(&["info", f.to_str().unwrap(), "--json"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["vertices"], 4999);
+    assert_eq!(v["faces"], 9994);
+    assert_eq!(v["components"], 1);
+    assert_eq!(v["boundary_loops"], 0);
+    assert_eq!(v["degenerate_faces"], 0);
+    let area = v["area"].as_f64().unwrap();
+    assert!((area - 0.5463).abs() < 1e-3, "{area}");
+    let plain = text(&run(&["info", f.to_str().unwrap()]).stdout);
+    assert!(plain.contains("vertices") && plain.contains("4999") && plain.contains("boundary loops"));
+}
+
+#[test]
+fn spectrum_writes_a_valid_basis_and_uses_the_cache() {
+    let d = tmp("spectrum");
+    let out_file = d.join("b.npz");
+    let cache = d.join("cache");
+    let f = data("tr_reg_001.off");
+    let args = [
+        "spectrum",
+        f.to_str().unwrap(),
+        "-k",
+        "30",
+        "-o",
+        out_file.to_str().unwrap(),
+        "--cache-dir",
+        cache.to_str().unwrap(),
+    ];
+    let first = run(&args);
+    assert!(first.status.success(), "{}", text(&first.stderr));
+    let err = text(&first.stderr);
+    assert!(err.contains("factor") && err.contains("eigensolve"), "stage timings missing: {err}");
+    let b = load_basis(&out_file).unwrap();
+    assert_eq!((b.n(), b.k()), (5000, 30));
+    assert!(b.eigenvalues.windows(2).all(|w| w[0] <= w[1]));
+    assert!(b.eigenvalues[0].abs() < 1e-8 && b.eigenvalues[1] > 1.0);
+    for i in 0..30 {
+        for j in 0..=i {
+            let d: f64 = (0..b.n()).map(|r| b.eigenvectors[(r, i)] * b.mass[r] * b.eigenvectors[(r, j)]).sum();
+            assert!((d - if i == j { 1.0 } else { 0.0 }).abs() < 1e-8);
+        }
+    }
+    // Second run: served from the cache (also for a smaller k), identical numbers.
+    let second = run(&args);
+    assert!(text(&second.stderr).contains("cached basis"), "{}", text(&second.stderr));
+    assert_eq!(load_basis(&out_file).unwrap().eigenvalues, b.eigenvalues);
+    let smaller = run(&["spectrum", f.to_str().unwrap(), "-k", "10", "--cache-dir", cache.to_str().unwrap()]);
+    assert!(text(&smaller.stderr).contains("cached basis"));
+    let printed: Vec<f64> = text(&smaller.stdout).lines().map(|l| l.parse().unwrap()).collect();
+    assert_eq!(printed, b.eigenvalues[..10]);
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn point_cloud_laplacian_and_saved_laplacian() {
+    let d = tmp("knn");
+    let f = data("tr_reg_000.off");
+    let lap = d.join("lap.npz");
+    let out = run(&[
+        "spectrum",
+        f.to_str().unwrap(),
+        "-k",
+        "8",
+        "--laplacian",
+        "knn",
+        "--no-cache",
+        "--save-laplacian",
+        lap.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let values: Vec<f64> = text(&out.stdout).lines().map(|l| l.parse().unwrap()).collect();
+    assert_eq!(values.len(), 8);
+    assert!(values[0].abs() < 1e-10 && values[1] > 0.0);
+    let arrays = read_npz(&lap).unwrap();
+    let get = |n: &str| arrays.iter().find(|(k, _)| k == n).unwrap().1.clone();
+    match (get("W_indptr"), get("mass")) {
+        (NpzArray::I64 { shape, .. }, NpzArray::F64 { data, .. }) => {
+            assert_eq!(shape, vec![5000]);
+            assert!(data.iter().all(|&a| a == 1.0), "A = I by default");
+        }
+        other => panic!("unexpected arrays {other:?}"),
+    }
+    // A point list cannot take the cotangent Laplacian.
+    let xyz = d.join("pts.xyz");
+    std::fs::write(&xyz, "0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 1 1\n").unwrap();
+    assert_fails(
+        &run(&["spectrum", xyz.to_str().unwrap(), "-k", "2", "--laplacian", "cotan"]),
+        "cotan needs a triangle mesh",
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn bad_inputs_fail_cleanly() {
+    let d = tmp("bad");
+    let good = std::fs::read_to_string(data("tr_reg_000.off")).unwrap();
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        ("empty.off", vec![], "empty.off"),
+        ("truncated.off", good[..good.len() / 2].as_bytes().to_vec(), "truncated.off"),
+        ("garbage.off", (0..4096u32).map(|i| (i.wrapping_mul(2654435761) >> 13) as u8).collect(), "garbage.off"),
+        ("nan.off", b"OFF\n3 1 0\n0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n".to_vec(), "nan.off"),
+        ("range.off", b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n".to_vec(), "range.off"),
+        ("negative.off", b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 -1 2\n".to_vec(), "negative.off"),
+        ("counts.off", b"OFF\n999999999999 1 0\n0 0 0\n".to_vec(), "counts.off"),
+        ("huge.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec(), "huge.ply"),
+        ("unknown.abc", b"hello".to_vec(), "unknown.abc"),
+    ];
+    for (name, bytes, needle) in &cases {
+        let p = d.join(name);
+        std::fs::write(&p, bytes).unwrap();
+        assert_fails(&run(&["info", p.to_str().unwrap()]), needle);
+        assert_fails(&run(&["spectrum", p.to_str().unwrap(), "-k", "5", "--no-cache"]), needle);
+    }
+    assert_fails(&run(&["info", d.join("missing.off").to_str().unwrap()]), "missing.off");
+    let f = data("tr_reg_000.off");
+    assert_fails(&run(&["spectrum", f.to_str().unwrap(), "-k", "4999", "--no-cache"]), "k");
+    assert_fails(&run(&["spectrum", f.to_str().unwrap(), "-k", "0", "--no-cache"]), "k");
+    assert_fails(
+        &run(&["spectrum", f.to_str().unwrap(), "-k", "5", "--laplacian", "knn", "--knn", "0", "--no-cache"]),
+        "K",
+    );
+    assert_fails(
+        &run(&["spectrum", f.to_str().unwrap(), "-k", "5", "--laplacian", "knn", "--sigma=-1", "--no-cache"]),
+        "σ",
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn help_explains_every_option() {
+    let out = run(&["spectrum", "--help"]);
+    let h = text(&out.stdout);
+    for opt in [
+        "-k",
+        "--output",
+        "--laplacian",
+        "--knn",
+        "--vertex-weights",
+        "--sigma",
+        "--tol",
+        "--block-size",
+        "--seed",
+        "--no-cache",
+        "--cache-dir",
+        "--save-laplacian",
+        "--quiet",
+    ] {
+        assert!(h.contains(opt), "--help lacks {opt}");
+    }
+}
+
+#[test]
+fn demo_runs_on_bundled_data() {
+    let d = tmp("demo");
+    let out = run(&["demo", "--out", d.to_str().unwrap(), "-k", "20"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let s = text(&out.stdout);
+    assert!(s.contains("tr_reg_000.off: 4999 vertices") && s.contains("tr_reg_001.off: 5000 vertices"), "{s}");
+    assert_eq!(load_basis(&d.join("tr_reg_000.basis.npz")).unwrap().k(), 20);
+    assert_eq!(load_basis(&d.join("tr_reg_001.basis.npz")).unwrap().n(), 5000);
+    std::fs::remove_dir_all(&d).unwrap();
+}
