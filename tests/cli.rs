@@ -143,7 +143,7 @@ fn bad_inputs_fail_cleanly() {
     let good = std::fs::read_to_string(data("tr_reg_000.off")).unwrap();
     let cases: Vec<(&str, Vec<u8>, &str)> = vec![
         ("empty.off", vec![], "empty.off"),
-        ("truncated.off", good[..good.len() / 2].as_bytes().to_vec(), "truncated.off"),
+        ("truncated.off", good.as_bytes()[..good.len() / 2].to_vec(), "truncated.off"),
         ("garbage.off", (0..4096u32).map(|i| (i.wrapping_mul(2654435761) >> 13) as u8).collect(), "garbage.off"),
         ("nan.off", b"OFF\n3 1 0\n0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n".to_vec(), "nan.off"),
         ("range.off", b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n".to_vec(), "range.off"),
