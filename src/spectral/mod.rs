@@ -44,7 +44,7 @@ pub struct SpectralOptions {
     pub tol: f64,
     /// Acceptance threshold on the verified relative residual of every returned pair.
     pub max_residual: f64,
-    /// Block size b of the Lanczos method (None: automatic, 8 for k ≤ 24, else 16).
+    /// Block size b of the Lanczos method (None: automatic, 4 for k ≤ 120, 8 for k ≤ 250, else 16).
     pub block_size: Option<usize>,
     /// Maximum number of restarts before giving up.
     pub max_restarts: usize,
@@ -479,6 +479,37 @@ mod tests {
             assert!((b.eigenvalues[i] - 2.0).abs() < 0.05, "λ[{i}] = {}", b.eigenvalues[i]);
         }
         assert!(b.eigenvalues[8] > 5.0);
+    }
+
+    #[test]
+    fn multiplicities_larger_than_the_block_are_found() {
+        // Six identical spheres: every eigenvalue has multiplicity 6 × (its multiplicity on one
+        // sphere), e.g. 6 zeros and 18 copies of λ ≈ 2, far above the default block size 4.
+        let s = icosphere(2);
+        let n1 = s.n_vertices() as u32;
+        let mut v = Vec::new();
+        let mut f = Vec::new();
+        for c in 0..6u32 {
+            v.extend(s.vertices().iter().map(|p| [p[0] + 3.0 * c as f64, p[1], p[2]]));
+            f.extend(s.faces().iter().map(|t| [t[0] + c * n1, t[1] + c * n1, t[2] + c * n1]));
+        }
+        let lap = cotangent(&TriMesh::new(v, f).unwrap()).unwrap();
+        let k = 40;
+        let mut opts = SpectralOptions::new(k);
+        let dense = eigen_basis(&lap, &opts, None).unwrap().0;
+        opts.dense_below = 0;
+        let (lz, info) = eigen_basis(&lap, &opts, None).unwrap();
+        assert!(info.block_size > 18, "block size {} cannot hold 18 copies", info.block_size);
+        for i in 0..k {
+            let scale = dense.eigenvalues[k - 1];
+            assert!(
+                (dense.eigenvalues[i] - lz.eigenvalues[i]).abs() < 1e-9 * scale,
+                "λ[{i}]: {} vs {}",
+                dense.eigenvalues[i],
+                lz.eigenvalues[i]
+            );
+        }
+        assert_mass_orthonormal(&lz, 1e-8);
     }
 
     #[test]
