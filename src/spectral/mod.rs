@@ -513,6 +513,24 @@ mod tests {
     }
 
     #[test]
+    fn knn_laplacian_of_sphere_points_has_sphere_spectrum_up_to_scale() {
+        // The paper's point-cloud Laplacian (eq. (1)) approximates c·Δ on uniform samples, so the
+        // eigenvalue ratios are those of the sphere, l(l+1)/2, with multiplicities 1, 3, 5.
+        use crate::laplacian::{knn_graph, KnnOptions};
+        let pts = icosphere(4).to_point_set();
+        let lap = knn_graph(&pts, &KnnOptions::default()).unwrap();
+        let b = solve(&lap, 16);
+        assert!(b.eigenvalues[0].abs() < 1e-10);
+        let unit = b.eigenvalues[1..4].iter().sum::<f64>() / 6.0; // l = 1: l(l+1) = 2
+        for (range, ll) in [(1..4, 2.0), (4..9, 6.0), (9..16, 12.0)] {
+            for i in range {
+                let ratio = b.eigenvalues[i] / unit;
+                assert!((ratio - ll).abs() < 0.05 * ll, "λ[{i}]/c = {ratio}, want {ll}");
+            }
+        }
+    }
+
+    #[test]
     fn bad_k_is_an_error() {
         let lap = cotangent(&icosphere(1)).unwrap();
         let n = lap.n();
