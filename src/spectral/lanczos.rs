@@ -14,7 +14,7 @@ use faer::sparse::SparseColMatRef;
 use faer::{Accum, Conj, Mat, MatMut, MatRef, Par, Side};
 use rayon::prelude::*;
 
-use super::{Normal, Progress, SolveInfo, SpectralOptions};
+use super::{relative_residuals, Normal, Progress, SolveInfo, SpectralOptions};
 use crate::error::{Error, Result};
 use crate::laplacian::Laplacian;
 
@@ -41,16 +41,17 @@ fn gemm_tn(v: MatRef<f64>, w: MatRef<f64>) -> Mat<f64> {
         .par_iter()
         .map(|&r0| {
             let len = ROW_CHUNK.min(n - r0);
-            let mut c = Mat::<f64>::zeros(v.ncols(), w.ncols());
-            matmul(c.as_mut(), Accum::Replace, v.subrows(r0, len).transpose(), w.subrows(r0, len), 1.0, Par::Seq);
+            // Computed as (Wᵀ V)ᵀ: the packed left operand is then the thin Wᵀ, not the tall V.
+            let mut c = Mat::<f64>::zeros(w.ncols(), v.ncols());
+            matmul(c.as_mut(), Accum::Replace, w.subrows(r0, len).transpose(), v.subrows(r0, len), 1.0, Par::Seq);
             c
         })
         .collect();
-    let mut sum = Mat::<f64>::zeros(v.ncols(), w.ncols());
+    let mut sum = Mat::<f64>::zeros(w.ncols(), v.ncols());
     for c in &partials {
         sum += c;
     }
-    sum
+    sum.transpose().to_owned()
 }
 
 /// dst ← (dst if accumulate) + alpha · V C, for V (n × p), C (p × q), dst (n × q).
@@ -132,19 +133,26 @@ fn scale_rows(mut x: MatMut<f64>, s: &[f64]) {
     }
 }
 
+/// Index into W's values of every diagonal entry (always stored, see
+/// [`crate::laplacian::Laplacian::w`]).
+fn diagonal_positions(lap: &Laplacian) -> Vec<usize> {
+    let sym = lap.w.symbolic();
+    (0..lap.n())
+        .map(|c| {
+            let start = sym.col_ptr()[c];
+            let rows = &sym.row_idx()[start..sym.col_ptr()[c + 1]];
+            start + rows.iter().position(|&r| r == c).expect("W stores its diagonal")
+        })
+        .collect()
+}
+
 /// Factors W + sA with a shift s > 0 small against the low end of the spectrum. s starts at
 /// 1e-6 · tr(W)/tr(A) (tr(W)/tr(A) is the mean of the spectrum, so s is far below the
 /// eigenvalues we want on any mesh or graph of more than a few hundred vertices, yet keeps the
 /// matrix safely definite) and grows tenfold if the factorization reports a non-positive pivot.
 fn factor<'a>(lap: &Laplacian, sqrt_m: &'a [f64]) -> Result<(ShiftInvert<'a>, f64)> {
-    let w = lap.w.as_ref();
-    let trace_w: f64 = (0..lap.n())
-        .map(|c| {
-            let rows = &w.symbolic().row_idx()[w.symbolic().col_ptr()[c]..w.symbolic().col_ptr()[c + 1]];
-            let vals = &w.val()[w.symbolic().col_ptr()[c]..w.symbolic().col_ptr()[c + 1]];
-            rows.iter().zip(vals).filter(|(r, _)| **r == c).map(|(_, v)| *v).sum::<f64>()
-        })
-        .sum();
+    let diag = diagonal_positions(lap);
+    let trace_w: f64 = diag.iter().map(|&p| lap.w.val()[p]).sum();
     let trace_a: f64 = lap.mass.iter().sum();
     let mut s = 1e-6 * trace_w / trace_a;
     if !(s.is_finite() && s > 0.0) {
@@ -153,17 +161,9 @@ fn factor<'a>(lap: &Laplacian, sqrt_m: &'a [f64]) -> Result<(ShiftInvert<'a>, f6
     let mut last_err = String::new();
     for _ in 0..6 {
         let mut k_mat = lap.w.clone();
-        {
-            let sym = lap.w.symbolic();
-            let (cp, ri) = (sym.col_ptr().to_vec(), sym.row_idx().to_vec());
-            let vals = k_mat.val_mut();
-            for c in 0..lap.n() {
-                for p in cp[c]..cp[c + 1] {
-                    if ri[p] == c {
-                        vals[p] += s * lap.mass[c];
-                    }
-                }
-            }
+        let vals = k_mat.val_mut();
+        for (c, &p) in diag.iter().enumerate() {
+            vals[p] += s * lap.mass[c];
         }
         match SparseLlt::new(k_mat.as_ref()) {
             Ok(llt) => return Ok((ShiftInvert { llt, sqrt_m }, s)),
@@ -444,21 +444,8 @@ fn lanczos_run(
     }
 }
 
-/// Checks ‖L̃u − λu‖ / λ_max ≤ max_res for the Ritz vectors U (n × k) in the symmetric form.
+/// Checks the relative residuals of the Ritz vectors U (n × k, symmetric form) against max_res.
 fn residuals_ok(lap: &Laplacian, sqrt_m: &[f64], u: &Mat<f64>, lambda: &[f64], max_res: f64) -> bool {
-    let lam_max = lambda.last().copied().unwrap_or(0.0).abs().max(f64::MIN_POSITIVE);
-    (0..u.ncols()).all(|j| {
-        let phi: Vec<f64> = u.col_as_slice(j).iter().zip(sqrt_m).map(|(x, s)| x / s).collect();
-        let wphi = lap.apply_w(&phi);
-        let r2: f64 = wphi
-            .iter()
-            .zip(&phi)
-            .zip(&lap.mass)
-            .map(|((w, p), a)| {
-                let r = w - lambda[j] * a * p;
-                r * r / a
-            })
-            .sum();
-        r2.sqrt() / lam_max <= max_res
-    })
+    let phi = Mat::<f64>::from_fn(u.nrows(), u.ncols(), |i, j| u[(i, j)] / sqrt_m[i]);
+    relative_residuals(lap, &phi, lambda).iter().all(|r| *r <= max_res)
 }

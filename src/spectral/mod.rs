@@ -187,23 +187,7 @@ pub fn eigen_basis(lap: &Laplacian, opts: &SpectralOptions, progress: Option<Pro
         fix_sign(col, &lap.mass);
     }
     // Verify every pair.
-    let lam_max = theta_lambda.last().copied().unwrap_or(0.0).abs().max(f64::MIN_POSITIVE);
-    let residuals: Vec<f64> = (0..k)
-        .map(|j| {
-            let phi = u.col_as_slice(j);
-            let wphi = lap.apply_w(phi);
-            let r2: f64 = wphi
-                .iter()
-                .zip(phi)
-                .zip(&lap.mass)
-                .map(|((w, p), a)| {
-                    let r = w - theta_lambda[j] * a * p;
-                    r * r / a
-                })
-                .sum();
-            r2.sqrt() / lam_max
-        })
-        .collect();
+    let residuals = relative_residuals(lap, &u, &theta_lambda);
     if let Some(j) = residuals.iter().position(|r| !(r.is_finite() && *r <= opts.max_residual)) {
         return Err(Error::numerical(
             "eigensolver",
@@ -213,9 +197,10 @@ pub fn eigen_basis(lap: &Laplacian, opts: &SpectralOptions, progress: Option<Pro
             ),
         ));
     }
+    let lam_k = theta_lambda[k - 1].abs();
     for l in &mut theta_lambda {
         // Round-off can make the zero eigenvalue(s) slightly negative; W is PSD.
-        if *l < 0.0 && *l > -1e-10 * lam_max {
+        if *l < 0.0 && *l > -1e-10 * lam_k {
             *l = 0.0;
         }
     }
@@ -242,6 +227,28 @@ pub fn eigen_basis_cached(
         c.put(key, &b)?;
     }
     Ok((b, Some(info)))
+}
+
+/// Relative residuals ‖Wφⱼ − λⱼAφⱼ‖_{A⁻¹} / |λ_k| of the columns of Φ (n × k), λ_k the last
+/// (largest) eigenvalue: the measure of [`Basis::residuals`].
+pub(crate) fn relative_residuals(lap: &Laplacian, phi: &Mat<f64>, lambda: &[f64]) -> Vec<f64> {
+    let lam_max = lambda.last().copied().unwrap_or(0.0).abs().max(f64::MIN_POSITIVE);
+    (0..phi.ncols())
+        .map(|j| {
+            let col = phi.col_as_slice(j);
+            let wphi = lap.apply_w(col);
+            let r2: f64 = wphi
+                .iter()
+                .zip(col)
+                .zip(&lap.mass)
+                .map(|((w, p), a)| {
+                    let r = w - lambda[j] * a * p;
+                    r * r / a
+                })
+                .sum();
+            r2.sqrt() / lam_max
+        })
+        .collect()
 }
 
 /// Sign convention: the A-weighted third moment Σ aᵢφᵢ³ is positive (invariant under vertex
