@@ -35,6 +35,9 @@ enum Command {
     /// Compute the first k Laplacian eigenpairs W φ = λ A φ and write them as .npz
     /// (arrays eigenvalues [k], eigenvectors [n×k], mass [n], residuals [k]).
     Spectrum(SpectrumArgs),
+    /// Compute data functions F (n × q) on a shape and write them as .npy: landmark deltas,
+    /// HKS, WKS, heat kernel maps, segment indicators, localized descriptors, or a given matrix.
+    Descriptors(DescriptorArgs),
     /// Run the default pipeline on a pair of bundled FAUST shapes and write results to
     /// ./funcorr-demo/.
     Demo {
@@ -64,16 +67,9 @@ enum WeightsChoice {
     Degree,
 }
 
+/// How to build the Laplacian of a shape.
 #[derive(clap::Args)]
-struct SpectrumArgs {
-    /// Shape file (see `funcorr info --help` for formats).
-    shape: PathBuf,
-    /// Number of eigenpairs k (1 ≤ k < n; the paper uses up to k' = 350).
-    #[arg(short)]
-    k: usize,
-    /// Output .npz file. Without it, the eigenvalues are printed to stdout, one per line.
-    #[arg(short, long)]
-    output: Option<PathBuf>,
+struct LaplacianArgs {
     /// Laplacian discretization (default: cotan for meshes, knn for point sets).
     #[arg(long, value_enum)]
     laplacian: Option<LaplacianChoice>,
@@ -87,6 +83,41 @@ struct SpectrumArgs {
     /// (default: self-tuning, σᵢ = distance to the K-th neighbour).
     #[arg(long)]
     sigma: Option<f64>,
+}
+
+/// Where eigenbases are cached.
+#[derive(clap::Args)]
+struct CacheArgs {
+    /// Do not read or write the basis cache.
+    #[arg(long)]
+    no_cache: bool,
+    /// Cache directory (default: $FUNCORR_CACHE_DIR, $XDG_CACHE_HOME/funcorr or ~/.cache/funcorr).
+    #[arg(long)]
+    cache_dir: Option<PathBuf>,
+}
+
+impl CacheArgs {
+    fn cache(&self) -> Option<BasisCache> {
+        if self.no_cache {
+            None
+        } else {
+            self.cache_dir.clone().or_else(BasisCache::default_dir).map(BasisCache::new)
+        }
+    }
+}
+
+#[derive(clap::Args)]
+struct SpectrumArgs {
+    /// Shape file (see `funcorr info --help` for formats).
+    shape: PathBuf,
+    /// Number of eigenpairs k (1 ≤ k < n; the paper uses up to k' = 350).
+    #[arg(short)]
+    k: usize,
+    /// Output .npz file. Without it, the eigenvalues are printed to stdout, one per line.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    #[command(flatten)]
+    lap: LaplacianArgs,
     /// Convergence tolerance on the relative residual ‖Wφ − λAφ‖_{A⁻¹} / λ_k of every pair.
     #[arg(long, default_value_t = 1e-8)]
     tol: f64,
@@ -96,16 +127,93 @@ struct SpectrumArgs {
     /// Seed of the random start block.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Do not read or write the basis cache.
-    #[arg(long)]
-    no_cache: bool,
-    /// Cache directory (default: $FUNCORR_CACHE_DIR, $XDG_CACHE_HOME/funcorr or ~/.cache/funcorr).
-    #[arg(long)]
-    cache_dir: Option<PathBuf>,
+    #[command(flatten)]
+    cache: CacheArgs,
     /// Also write W (CSC arrays W_data, W_indices, W_indptr, W_shape) and the mass to this .npz,
     /// e.g. to compare with scipy.
     #[arg(long)]
     save_laplacian: Option<PathBuf>,
+    /// No progress bar or timings on stderr.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum DescriptorKind {
+    /// Delta functions at landmark vertices (--landmarks, one column per pair).
+    Landmarks,
+    /// Heat kernel signature (Sun et al. 2009), --count log-spaced times.
+    Hks,
+    /// Wave kernel signature (Aubry et al. 2011), --count log-energies.
+    Wks,
+    /// Heat kernel maps (Ovsjanikov et al. 2010) from the --seeds vertices at --times times.
+    Hkm,
+    /// Indicator functions of the segments in --labels (one column per label).
+    Segments,
+    /// WKS (and HKM when --seeds is given) multiplied by the indicators of the --labels segments.
+    Localized,
+    /// A given n × q matrix (--matrix .npy or .csv), checked and passed through.
+    Matrix,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Side2 {
+    /// First column of the landmark file (the source shape X).
+    Source,
+    /// Second column (the target shape Y).
+    Target,
+}
+
+#[derive(clap::Args)]
+struct DescriptorArgs {
+    /// Shape file (see `funcorr info --help` for formats).
+    shape: PathBuf,
+    /// Which functions to compute.
+    #[arg(long, value_enum)]
+    kind: DescriptorKind,
+    /// Output .npy file (n × q, f64).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Also write the q column names, one per line, to this file.
+    #[arg(long)]
+    names: Option<PathBuf>,
+    /// Number of HKS times or WKS energies.
+    #[arg(long, default_value_t = 100)]
+    count: usize,
+    /// Keep the raw signatures (default: scale-normalized, area-weighted mean 1 per column).
+    #[arg(long)]
+    no_normalize: bool,
+    /// Landmark pairs file: two vertex indices per line, `i j` (X vertex, Y vertex).
+    #[arg(long)]
+    landmarks: Option<PathBuf>,
+    /// Which column of the landmark file belongs to this shape.
+    #[arg(long, value_enum, default_value = "source")]
+    side: Side2,
+    /// Vertex indices in --landmarks / --seeds files are 1-based (MATLAB).
+    #[arg(long)]
+    one_based: bool,
+    /// Seed vertices of heat kernel maps: one vertex index per line.
+    #[arg(long)]
+    seeds: Option<PathBuf>,
+    /// Number of heat kernel map times (log-spaced over the HKS range).
+    #[arg(long, default_value_t = 5)]
+    times: usize,
+    /// Per-vertex segment labels: one integer per line, one line per vertex.
+    #[arg(long)]
+    labels: Option<PathBuf>,
+    /// Data matrix (.npy or .csv), n rows.
+    #[arg(long)]
+    matrix: Option<PathBuf>,
+    /// Number of eigenpairs of the basis the signatures are computed from.
+    #[arg(short, default_value_t = 100)]
+    k: usize,
+    /// Use this basis file (from `funcorr spectrum`) instead of computing one.
+    #[arg(long)]
+    basis: Option<PathBuf>,
+    #[command(flatten)]
+    lap: LaplacianArgs,
+    #[command(flatten)]
+    cache: CacheArgs,
     /// No progress bar or timings on stderr.
     #[arg(short, long)]
     quiet: bool,
@@ -130,6 +238,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Info { shape, json } => info(&shape, json),
         Command::Spectrum(args) => spectrum(&args),
+        Command::Descriptors(args) => descriptors(&args),
         Command::Demo { out, k } => demo(&out, k),
     };
     match result {
@@ -212,7 +321,7 @@ fn mesh_facts(m: &TriMesh) -> Vec<(&'static str, serde_json::Value)> {
     ]
 }
 
-fn build_laplacian(shape: &Shape, args: &SpectrumArgs) -> Result<Laplacian> {
+fn build_laplacian(shape: &Shape, args: &LaplacianArgs) -> Result<Laplacian> {
     let choice = args.laplacian.unwrap_or(match shape {
         Shape::Mesh(_) => LaplacianChoice::Cotan,
         Shape::Points(_) => LaplacianChoice::Knn,
@@ -252,7 +361,7 @@ fn progress_bar(k: usize, quiet: bool) -> ProgressBar {
 fn spectrum(args: &SpectrumArgs) -> Result<()> {
     let mut st = Stages { quiet: args.quiet, parts: vec![] };
     let shape = st.run("read", || Shape::load(&args.shape))?;
-    let lap = st.run("laplacian", || build_laplacian(&shape, args))?;
+    let lap = st.run("laplacian", || build_laplacian(&shape, &args.lap))?;
     if let Some(p) = &args.save_laplacian {
         st.run("save laplacian", || save_laplacian(p, &lap))?;
     }
@@ -261,8 +370,7 @@ fn spectrum(args: &SpectrumArgs) -> Result<()> {
     if args.block_size == Some(0) {
         return Err(Error::invalid("--block-size", "must be at least 1"));
     }
-    let cache =
-        if args.no_cache { None } else { args.cache_dir.clone().or_else(BasisCache::default_dir).map(BasisCache::new) };
+    let cache = args.cache.cache();
     let pb = progress_bar(args.k, args.quiet);
     let update = |done: usize, _k: usize| pb.set_position(done as u64);
     let t = Instant::now();
@@ -308,6 +416,92 @@ fn save_laplacian(path: &Path, lap: &Laplacian) -> Result<()> {
             ("mass", NpzArray::F64 { shape: vec![n], data: lap.mass.clone() }),
         ],
     )
+}
+
+/// `flag` must be given for this descriptor kind.
+fn need<'a>(v: &'a Option<PathBuf>, flag: &str, kind: &str) -> Result<&'a PathBuf> {
+    v.as_ref().ok_or_else(|| Error::invalid(flag, format!("--kind {kind} needs {flag} FILE")))
+}
+
+fn descriptors(args: &DescriptorArgs) -> Result<()> {
+    use funcorr::descriptors::{self as desc, signatures};
+    use funcorr::io::indices;
+    let mut st = Stages { quiet: args.quiet, parts: vec![] };
+    let shape = st.run("read", || Shape::load(&args.shape))?;
+    let n = shape.n_vertices();
+    let normalize = !args.no_normalize;
+    let needs_basis = matches!(
+        args.kind,
+        DescriptorKind::Hks | DescriptorKind::Wks | DescriptorKind::Hkm | DescriptorKind::Localized
+    );
+    let basis = if !needs_basis {
+        None
+    } else if let Some(p) = &args.basis {
+        let b = st.run("read basis", || spectral::load_basis(p))?;
+        if b.n() != n {
+            return Err(Error::invalid(
+                "--basis",
+                format!("{} has {} rows but the shape has {n} vertices", p.display(), b.n()),
+            ));
+        }
+        Some(b)
+    } else {
+        let lap = st.run("laplacian", || build_laplacian(&shape, &args.lap))?;
+        let cache = args.cache.cache();
+        let (b, _) = st.run("eigenbasis", || {
+            spectral::eigen_basis_cached(&lap, &SpectralOptions::new(args.k), cache.as_ref(), None)
+        })?;
+        Some(b)
+    };
+    let seeds = |path: &Path| indices::read_index_list_file(path, args.one_based, n);
+    let d = st.run("descriptors", || {
+        let b = || basis.as_ref().expect("basis computed for this kind");
+        match args.kind {
+            DescriptorKind::Landmarks => {
+                let p = need(&args.landmarks, "--landmarks", "landmarks")?;
+                let pairs = indices::read_index_pairs_file(p, args.one_based, usize::MAX, usize::MAX)?;
+                let v: Vec<usize> =
+                    pairs.iter().map(|&(i, j)| if matches!(args.side, Side2::Source) { i } else { j }).collect();
+                desc::landmarks(n, &v).map_err(|e| Error::parse(p, None, e.to_string()))
+            }
+            DescriptorKind::Hks => signatures::hks(b(), &signatures::hks_times(b(), args.count)?, normalize),
+            DescriptorKind::Wks => signatures::wks(b(), args.count, normalize),
+            DescriptorKind::Hkm => {
+                let s = seeds(need(&args.seeds, "--seeds", "hkm")?)?;
+                signatures::hkm(b(), &s, &signatures::hks_times(b(), args.times)?, normalize)
+            }
+            DescriptorKind::Segments => {
+                desc::segments(&indices::read_labels_file(need(&args.labels, "--labels", "segments")?, n)?)
+            }
+            DescriptorKind::Localized => {
+                let segs =
+                    desc::segments(&indices::read_labels_file(need(&args.labels, "--labels", "localized")?, n)?)?;
+                let mut base = signatures::wks(b(), args.count, normalize)?;
+                if let Some(p) = &args.seeds {
+                    base = base.concat(&signatures::hkm(
+                        b(),
+                        &seeds(p)?,
+                        &signatures::hks_times(b(), args.times)?,
+                        normalize,
+                    )?)?;
+                }
+                desc::localized(&base, &segs)
+            }
+            DescriptorKind::Matrix => {
+                desc::Descriptors::from_matrix(&funcorr::io::read_matrix(need(&args.matrix, "--matrix", "matrix")?)?, n)
+            }
+        }
+    })?;
+    st.run("write", || {
+        funcorr::io::npy::write_npy_matrix(&args.output, &d.to_dense())?;
+        if let Some(p) = &args.names {
+            std::fs::write(p, d.names.join("\n") + "\n").map_err(|e| Error::io(p, e))?;
+        }
+        Ok(())
+    })?;
+    st.note(format!("n {} q {}", d.n(), d.q()));
+    st.finish();
+    Ok(())
 }
 
 /// The two bundled FAUST shapes (remeshed, ~5k vertices; Bogo et al. 2014, remeshed for

@@ -207,3 +207,78 @@ fn demo_runs_on_bundled_data() {
     assert_eq!(load_basis(&d.join("tr_reg_001.basis.npz")).unwrap().n(), 5000);
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn descriptors_command_writes_npy() {
+    use funcorr::io::npy::read_npy_matrix;
+    let d = tmp("desc");
+    let f = data("tr_reg_000.off");
+    let labels = data("tr_reg_000_tr_reg_001.tr_reg_000.seg.sym");
+    let out = d.join("F.npy");
+    let names = d.join("names.txt");
+    let base = |kind: &str| -> Vec<String> {
+        vec![
+            "descriptors".into(),
+            f.to_str().unwrap().into(),
+            "--kind".into(),
+            kind.into(),
+            "-o".into(),
+            out.to_str().unwrap().into(),
+            "--names".into(),
+            names.to_str().unwrap().into(),
+            "-k".into(),
+            "50".into(),
+            "--no-cache".into(),
+        ]
+    };
+    let run_kind = |kind: &str, extra: &[&str]| -> Output {
+        let mut a = base(kind);
+        a.extend(extra.iter().map(|s| s.to_string()));
+        let a: Vec<&str> = a.iter().map(|s| s.as_str()).collect();
+        run(&a)
+    };
+    // HKS: 4999 × 20, positive, mean 1 per column (scale-normalized).
+    let r = run_kind("hks", &["--count", "20"]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let m = read_npy_matrix(&out).unwrap();
+    assert_eq!((m.rows, m.cols), (4999, 20));
+    assert!(m.data.iter().all(|v| *v > 0.0));
+    assert_eq!(std::fs::read_to_string(&names).unwrap().lines().count(), 20);
+    // Segments from the bundled label file: 11 indicators, one 1 per row.
+    let r = run_kind("segments", &["--labels", labels.to_str().unwrap()]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let m = read_npy_matrix(&out).unwrap();
+    assert_eq!((m.rows, m.cols), (4999, 11));
+    for i in 0..m.rows {
+        assert_eq!(m.data[i * 11..(i + 1) * 11].iter().sum::<f64>(), 1.0);
+    }
+    // Landmarks: the target column of a pairs file.
+    let pairs = d.join("pairs.txt");
+    std::fs::write(&pairs, "10 20\n30 40\n").unwrap();
+    let r = run_kind("landmarks", &["--landmarks", pairs.to_str().unwrap(), "--side", "target"]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let m = read_npy_matrix(&out).unwrap();
+    assert_eq!((m.rows, m.cols), (4999, 2));
+    assert_eq!(m.data[20 * 2], 1.0);
+    assert_eq!(m.data[40 * 2 + 1], 1.0);
+    assert_eq!(m.data.iter().sum::<f64>(), 2.0);
+    // Localized WKS + HKM: 11 segments × (8 WKS + 2 seeds × 3 times).
+    let seeds = d.join("seeds.txt");
+    std::fs::write(&seeds, "100\n2000\n").unwrap();
+    let r = run_kind(
+        "localized",
+        &["--labels", labels.to_str().unwrap(), "--count", "8", "--seeds", seeds.to_str().unwrap(), "--times", "3"],
+    );
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert_eq!(read_npy_matrix(&out).unwrap().cols, 11 * (8 + 6));
+    // Bad input.
+    let short = d.join("short.seg");
+    std::fs::write(&short, "1\n2\n").unwrap();
+    assert_fails(&run_kind("segments", &["--labels", short.to_str().unwrap()]), "short.seg");
+    std::fs::write(&pairs, "10 20\n5000 1\n").unwrap();
+    assert_fails(&run_kind("landmarks", &["--landmarks", pairs.to_str().unwrap()]), "out of range");
+    assert_fails(&run_kind("hkm", &[]), "--seeds");
+    std::fs::write(&seeds, "100\n4999\n").unwrap();
+    assert_fails(&run_kind("hkm", &["--seeds", seeds.to_str().unwrap()]), "out of range");
+    std::fs::remove_dir_all(&d).unwrap();
+}

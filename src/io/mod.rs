@@ -10,6 +10,7 @@
 //! problems as [`Error::Parse`] (with a 1-based line number for text formats) saying what was
 //! expected and what was found.
 
+pub mod indices;
 pub mod npy;
 pub mod obj;
 pub mod off;

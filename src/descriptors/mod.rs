@@ -1,0 +1,167 @@
+//! Data terms F (n × q) and G (m × q): the corresponding functions the correspondence is
+//! recovered from (paper §2 "Functional maps" and §4.1 "Data").
+//!
+//! - [`landmarks`]: delta functions at given vertices (the paper's "seeds");
+//! - [`signatures`]: heat kernel signature (HKS), wave kernel signature (WKS), heat kernel maps
+//!   (HKM), all from a Laplacian eigenbasis;
+//! - [`segments`]: indicator functions of segments (the paper's scarce setting), from label files,
+//!   and the matching of segments between two shapes;
+//! - [`localized`]: any descriptor multiplied by segment indicators (the paper's rich setting);
+//! - [`Descriptors::from_matrix`]: any user-provided n × q matrix.
+//!
+//! Every function returns a [`Descriptors`]: the n × q matrix with a name for each column.
+
+pub mod matching;
+pub mod signatures;
+
+use faer::Mat;
+
+use crate::error::{Error, Result};
+use crate::io::DenseMatrix;
+
+/// q functions on a shape with n vertices: `values` is n × q, column j is the function named
+/// `names[j]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Descriptors {
+    /// n × q values.
+    pub values: Mat<f64>,
+    /// q column names (e.g. `hks:t=1.2e-3`, `segment:4`, `delta:117`).
+    pub names: Vec<String>,
+}
+
+impl Descriptors {
+    /// Wraps an n × q matrix and its q column names; errors on a count mismatch or a non-finite value.
+    pub fn new(values: Mat<f64>, names: Vec<String>) -> Result<Self> {
+        if values.ncols() != names.len() {
+            return Err(Error::invalid("descriptors", format!("{} columns but {} names", values.ncols(), names.len())));
+        }
+        for j in 0..values.ncols() {
+            if let Some(i) = values.col_as_slice(j).iter().position(|v| !v.is_finite()) {
+                return Err(Error::invalid(
+                    "descriptors",
+                    format!("column {j} ({}) is not finite at vertex {i}", names[j]),
+                ));
+            }
+        }
+        Ok(Descriptors { values, names })
+    }
+
+    /// Number of vertices n.
+    pub fn n(&self) -> usize {
+        self.values.nrows()
+    }
+
+    /// Number of functions q.
+    pub fn q(&self) -> usize {
+        self.values.ncols()
+    }
+
+    /// A user-provided n × q matrix (e.g. from [`crate::io::read_matrix`]); columns are named
+    /// `column:0`, `column:1`, …. Errors when the row count is not n.
+    pub fn from_matrix(m: &DenseMatrix, n: usize) -> Result<Self> {
+        if m.rows != n {
+            return Err(Error::invalid(
+                "data matrix",
+                format!("it has {} rows but the shape has {n} vertices", m.rows),
+            ));
+        }
+        let values = Mat::from_fn(m.rows, m.cols, |i, j| m.data[i * m.cols + j]);
+        Descriptors::new(values, (0..m.cols).map(|j| format!("column:{j}")).collect())
+    }
+
+    /// The values as a row-major n × q matrix, e.g. to write as `.npy`.
+    pub fn to_dense(&self) -> DenseMatrix {
+        let (n, q) = (self.n(), self.q());
+        DenseMatrix { rows: n, cols: q, data: (0..n * q).map(|t| self.values[(t / q, t % q)]).collect() }
+    }
+
+    /// Columns of `self` followed by those of `other` (same n).
+    pub fn concat(&self, other: &Descriptors) -> Result<Self> {
+        if self.n() != other.n() {
+            return Err(Error::invalid("descriptors", format!("cannot join {} and {} rows", self.n(), other.n())));
+        }
+        let (q1, q2) = (self.q(), other.q());
+        let values =
+            Mat::from_fn(
+                self.n(),
+                q1 + q2,
+                |i, j| if j < q1 { self.values[(i, j)] } else { other.values[(i, j - q1)] },
+            );
+        Ok(Descriptors { values, names: self.names.iter().chain(&other.names).cloned().collect() })
+    }
+}
+
+/// Delta functions δ_v (value 1 at vertex v, 0 elsewhere; the paper's F = (δ_{i1}, …, δ_{iq}))
+/// on a shape with n vertices, one column per entry of `vertices`, named `delta:v`.
+pub fn landmarks(n: usize, vertices: &[usize]) -> Result<Descriptors> {
+    if vertices.is_empty() {
+        return Err(Error::invalid("landmarks", "no vertices given"));
+    }
+    if let Some(&v) = vertices.iter().find(|&&v| v >= n) {
+        return Err(Error::invalid("landmarks", format!("vertex {v} is out of range (n = {n})")));
+    }
+    let mut values = Mat::<f64>::zeros(n, vertices.len());
+    for (j, &v) in vertices.iter().enumerate() {
+        values[(v, j)] = 1.0;
+    }
+    Ok(Descriptors { values, names: vertices.iter().map(|v| format!("delta:{v}")).collect() })
+}
+
+/// Indicator functions of the segments given by per-vertex labels: one column per distinct label,
+/// in ascending label order, named `segment:L` (1 on the vertices labelled L, 0 elsewhere).
+pub fn segments(labels: &[u32]) -> Result<Descriptors> {
+    if labels.is_empty() {
+        return Err(Error::invalid("labels", "no labels given"));
+    }
+    let mut distinct: Vec<u32> = labels.to_vec();
+    distinct.sort_unstable();
+    distinct.dedup();
+    let mut values = Mat::<f64>::zeros(labels.len(), distinct.len());
+    for (i, l) in labels.iter().enumerate() {
+        let j = distinct.binary_search(l).expect("label is in the list");
+        values[(i, j)] = 1.0;
+    }
+    Ok(Descriptors { values, names: distinct.iter().map(|l| format!("segment:{l}")).collect() })
+}
+
+/// Localized descriptors (paper §4.1, rich data): every column of `d` multiplied by every segment
+/// indicator of `segments`, segment-major: column s·q + j is `d_j · 1_{segment s}`, named
+/// `d_j@segment`. n × (q · S).
+pub fn localized(d: &Descriptors, segments: &Descriptors) -> Result<Descriptors> {
+    if d.n() != segments.n() {
+        return Err(Error::invalid("localized descriptors", format!("{} vs {} vertices", d.n(), segments.n())));
+    }
+    let (q, s) = (d.q(), segments.q());
+    let values = Mat::from_fn(d.n(), q * s, |i, c| d.values[(i, c % q)] * segments.values[(i, c / q)]);
+    let names = (0..q * s).map(|c| format!("{}@{}", d.names[c % q], segments.names[c / q])).collect();
+    Ok(Descriptors { values, names })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn deltas_segments_localized() {
+        let d = landmarks(4, &[2, 0]).unwrap();
+        assert_eq!(d.values[(2, 0)], 1.0);
+        assert_eq!(d.values[(0, 1)], 1.0);
+        assert_eq!(d.values.col_as_slice(0).iter().sum::<f64>(), 1.0);
+        assert!(landmarks(4, &[4]).is_err());
+        let s = segments(&[3, 1, 3, 1]).unwrap();
+        assert_eq!(s.names, vec!["segment:1", "segment:3"]);
+        assert_eq!(s.values.col_as_slice(1), &[1.0, 0.0, 1.0, 0.0]);
+        let f = Descriptors::new(Mat::from_fn(4, 1, |i, _| i as f64), vec!["x".into()]).unwrap();
+        let l = localized(&f, &s).unwrap();
+        assert_eq!(l.q(), 2);
+        assert_eq!(l.values.col_as_slice(0), &[0.0, 1.0, 0.0, 3.0]);
+        assert_eq!(l.names[1], "x@segment:3");
+        assert!(localized(&f, &segments(&[1, 2]).unwrap()).is_err());
+        let both = d.concat(&s).unwrap();
+        assert_eq!(both.q(), 4);
+        let dense = both.to_dense();
+        assert_eq!(Descriptors::from_matrix(&dense, 4).unwrap().values, both.values);
+        assert!(Descriptors::from_matrix(&dense, 5).is_err());
+        assert!(Descriptors::new(Mat::from_fn(2, 1, |_, _| f64::NAN), vec!["nan".into()]).is_err());
+    }
+}
