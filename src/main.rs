@@ -38,6 +38,10 @@ enum Command {
     /// Compute data functions F (n × q) on a shape and write them as .npy: landmark deltas,
     /// HKS, WKS, heat kernel maps, segment indicators, localized descriptors, or a given matrix.
     Descriptors(DescriptorArgs),
+    /// Corresponding region indicators F (n × s) and G (m × s) for two shapes: segments from
+    /// label files, persistence segments or ShapeMSER regions, matched by their signatures.
+    /// Writes OUTDIR/F.npy, OUTDIR/G.npy and OUTDIR/matches.json.
+    Regions(RegionArgs),
     /// Run the default pipeline on a pair of bundled FAUST shapes and write results to
     /// ./funcorr-demo/.
     Demo {
@@ -150,7 +154,14 @@ enum DescriptorKind {
     Hkm,
     /// Indicator functions of the segments in --labels (one column per label).
     Segments,
-    /// WKS (and HKM when --seeds is given) multiplied by the indicators of the --labels segments.
+    /// Indicators of the segments of a persistence-based segmentation (Skraba et al. 2010) of
+    /// --function (default: HKS at t = --hks-time/λ₁) with persistence threshold --threshold.
+    Persistence,
+    /// Indicators of the maximally stable regions of the heat kernel diagonal (ShapeMSER,
+    /// Litman et al. 2011); meshes only.
+    Mser,
+    /// WKS (and HKM when --seeds is given) multiplied by the indicators of the --labels segments
+    /// (or, without --labels, of the persistence segments).
     Localized,
     /// A given n × q matrix (--matrix .npy or .csv), checked and passed through.
     Matrix,
@@ -204,6 +215,11 @@ struct DescriptorArgs {
     /// Data matrix (.npy or .csv), n rows.
     #[arg(long)]
     matrix: Option<PathBuf>,
+    #[command(flatten)]
+    seg: SegmentationArgs,
+    /// Also write the per-vertex segment labels (1-based, one per line) of --kind persistence.
+    #[arg(long)]
+    write_labels: Option<PathBuf>,
     /// Number of eigenpairs of the basis the signatures are computed from.
     #[arg(short, default_value_t = 100)]
     k: usize,
@@ -217,6 +233,114 @@ struct DescriptorArgs {
     /// No progress bar or timings on stderr.
     #[arg(short, long)]
     quiet: bool,
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum RegionKind {
+    /// Segments given by --labels-x and --labels-y (e.g. the data set's segmentations).
+    Labels,
+    /// Persistence-based segments of both shapes.
+    Persistence,
+    /// ShapeMSER regions of both shapes (meshes only).
+    Mser,
+}
+
+#[derive(clap::Args)]
+struct RegionArgs {
+    /// Source shape X.
+    x: PathBuf,
+    /// Target shape Y.
+    y: PathBuf,
+    /// Where the regions come from.
+    #[arg(long, value_enum, default_value = "persistence")]
+    kind: RegionKind,
+    /// Per-vertex labels of X (--kind labels).
+    #[arg(long)]
+    labels_x: Option<PathBuf>,
+    /// Per-vertex labels of Y (--kind labels).
+    #[arg(long)]
+    labels_y: Option<PathBuf>,
+    /// Output directory.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Number of eigenpairs of the bases the signatures are computed from.
+    #[arg(short, default_value_t = 100)]
+    k: usize,
+    #[command(flatten)]
+    seg: SegmentationArgs,
+    #[command(flatten)]
+    lap: LaplacianArgs,
+    #[command(flatten)]
+    cache: CacheArgs,
+    /// No timings on stderr.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum SegFunction {
+    /// Scale-normalized heat kernel signature at t = --hks-time / λ₁ (maxima at protrusions).
+    Hks,
+    /// Average geodesic distance, approximated by graph distances from 32 farthest-point sources.
+    Agd,
+}
+
+/// Options of the persistence-based segmentation.
+#[derive(clap::Args)]
+struct SegmentationArgs {
+    /// Function whose maxima seed the persistence segments.
+    #[arg(long, value_enum, default_value = "hks")]
+    function: SegFunction,
+    /// Persistence threshold τ as a fraction of the function's range (0–1).
+    #[arg(long, default_value_t = funcorr::descriptors::persistence::DEFAULT_THRESHOLD)]
+    threshold: f64,
+    /// HKS time of the segmentation function, in units of 1/λ₁.
+    #[arg(long, default_value_t = funcorr::descriptors::persistence::DEFAULT_HKS_TIME)]
+    hks_time: f64,
+}
+
+/// Persistence segmentation of a shape (labels 1..=s, one per vertex).
+fn persistence_labels(shape: &Shape, lap: &Laplacian, basis: &Basis, args: &SegmentationArgs) -> Result<Vec<u32>> {
+    use funcorr::descriptors::persistence as pers;
+    let edges = match shape {
+        Shape::Mesh(m) => m.edges(),
+        Shape::Points(_) => pers::graph_edges(lap),
+    };
+    let f = match (args.function, shape) {
+        (SegFunction::Hks, _) => pers::hks_function(basis, args.hks_time)?,
+        (SegFunction::Agd, Shape::Mesh(m)) => pers::average_geodesic_distance(m, pers::DEFAULT_AGD_SOURCES)?,
+        (SegFunction::Agd, Shape::Points(p)) => pers::average_graph_distance(p, &edges, pers::DEFAULT_AGD_SOURCES)?,
+    };
+    Ok(pers::persistence_segmentation(shape.n_vertices(), &edges, &f, args.threshold)?.labels)
+}
+
+/// The Laplacian and basis of a shape: read from --basis, or computed (and cached).
+fn shape_basis(
+    shape: &Shape,
+    lap_args: &LaplacianArgs,
+    cache: &CacheArgs,
+    k: usize,
+    basis_file: Option<&Path>,
+    st: &mut Stages,
+) -> Result<(Laplacian, Basis)> {
+    let lap = st.run("laplacian", || build_laplacian(shape, lap_args))?;
+    let basis = match basis_file {
+        Some(p) => {
+            let b = st.run("read basis", || spectral::load_basis(p))?;
+            if b.n() != shape.n_vertices() {
+                return Err(Error::invalid(
+                    "--basis",
+                    format!("{} has {} rows but the shape has {} vertices", p.display(), b.n(), shape.n_vertices()),
+                ));
+            }
+            b
+        }
+        None => {
+            let c = cache.cache();
+            st.run("eigenbasis", || spectral::eigen_basis_cached(&lap, &SpectralOptions::new(k), c.as_ref(), None))?.0
+        }
+    };
+    Ok((lap, basis))
 }
 
 /// `println!` that ends the program quietly when stdout is closed early (`funcorr … | head`),
@@ -239,6 +363,7 @@ fn main() -> ExitCode {
         Command::Info { shape, json } => info(&shape, json),
         Command::Spectrum(args) => spectrum(&args),
         Command::Descriptors(args) => descriptors(&args),
+        Command::Regions(args) => regions(&args),
         Command::Demo { out, k } => demo(&out, k),
     };
     match result {
@@ -430,32 +555,18 @@ fn descriptors(args: &DescriptorArgs) -> Result<()> {
     let shape = st.run("read", || Shape::load(&args.shape))?;
     let n = shape.n_vertices();
     let normalize = !args.no_normalize;
-    let needs_basis = matches!(
-        args.kind,
-        DescriptorKind::Hks | DescriptorKind::Wks | DescriptorKind::Hkm | DescriptorKind::Localized
-    );
-    let basis = if !needs_basis {
-        None
-    } else if let Some(p) = &args.basis {
-        let b = st.run("read basis", || spectral::load_basis(p))?;
-        if b.n() != n {
-            return Err(Error::invalid(
-                "--basis",
-                format!("{} has {} rows but the shape has {n} vertices", p.display(), b.n()),
-            ));
-        }
-        Some(b)
+    let needs_basis =
+        !matches!(args.kind, DescriptorKind::Landmarks | DescriptorKind::Segments | DescriptorKind::Matrix);
+    let lb = if needs_basis {
+        Some(shape_basis(&shape, &args.lap, &args.cache, args.k, args.basis.as_deref(), &mut st)?)
     } else {
-        let lap = st.run("laplacian", || build_laplacian(&shape, &args.lap))?;
-        let cache = args.cache.cache();
-        let (b, _) = st.run("eigenbasis", || {
-            spectral::eigen_basis_cached(&lap, &SpectralOptions::new(args.k), cache.as_ref(), None)
-        })?;
-        Some(b)
+        None
     };
+    let basis = lb.as_ref().map(|(_, b)| b);
     let seeds = |path: &Path| indices::read_index_list_file(path, args.one_based, n);
     let d = st.run("descriptors", || {
-        let b = || basis.as_ref().expect("basis computed for this kind");
+        let b = || basis.expect("basis computed for this kind");
+        let lap = || &lb.as_ref().expect("Laplacian computed for this kind").0;
         match args.kind {
             DescriptorKind::Landmarks => {
                 let p = need(&args.landmarks, "--landmarks", "landmarks")?;
@@ -473,9 +584,24 @@ fn descriptors(args: &DescriptorArgs) -> Result<()> {
             DescriptorKind::Segments => {
                 desc::segments(&indices::read_labels_file(need(&args.labels, "--labels", "segments")?, n)?)
             }
+            DescriptorKind::Persistence => {
+                let labels = persistence_labels(&shape, lap(), b(), &args.seg)?;
+                if let Some(p) = &args.write_labels {
+                    let text: String = labels.iter().map(|l| format!("{l}\n")).collect();
+                    std::fs::write(p, text).map_err(|e| Error::io(p, e))?;
+                }
+                desc::segments(&labels)
+            }
+            DescriptorKind::Mser => match &shape {
+                Shape::Mesh(m) => Ok(desc::mser::shape_mser(m, b(), &desc::mser::MserOptions::default())?.1),
+                Shape::Points(_) => Err(Error::invalid("--kind", "mser needs a triangle mesh; this file has no faces")),
+            },
             DescriptorKind::Localized => {
-                let segs =
-                    desc::segments(&indices::read_labels_file(need(&args.labels, "--labels", "localized")?, n)?)?;
+                let labels = match &args.labels {
+                    Some(p) => indices::read_labels_file(p, n)?,
+                    None => persistence_labels(&shape, lap(), b(), &args.seg)?,
+                };
+                let segs = desc::segments(&labels)?;
                 let mut base = signatures::wks(b(), args.count, normalize)?;
                 if let Some(p) = &args.seeds {
                     base = base.concat(&signatures::hkm(
@@ -500,6 +626,52 @@ fn descriptors(args: &DescriptorArgs) -> Result<()> {
         Ok(())
     })?;
     st.note(format!("n {} q {}", d.n(), d.q()));
+    st.finish();
+    Ok(())
+}
+
+fn regions(args: &RegionArgs) -> Result<()> {
+    use funcorr::descriptors::{mser, persistence as pers};
+    let mut st = Stages { quiet: args.quiet, parts: vec![] };
+    let x = st.run("read", || Shape::load(&args.x))?;
+    let y = st.run("read", || Shape::load(&args.y))?;
+    let (lx, bx) = shape_basis(&x, &args.lap, &args.cache, args.k, None, &mut st)?;
+    let (ly, by) = shape_basis(&y, &args.lap, &args.cache, args.k, None, &mut st)?;
+    let (f, g, matches) = st.run("regions", || match args.kind {
+        RegionKind::Labels => {
+            let read = |p: &Option<PathBuf>, flag: &str, n| {
+                funcorr::io::indices::read_labels_file(need(p, flag, "labels")?, n)
+            };
+            let (a, b) = (
+                read(&args.labels_x, "--labels-x", x.n_vertices())?,
+                read(&args.labels_y, "--labels-y", y.n_vertices())?,
+            );
+            pers::matched_segment_indicators(&a, &bx, &b, &by)
+        }
+        RegionKind::Persistence => {
+            let a = persistence_labels(&x, &lx, &bx, &args.seg)?;
+            let b = persistence_labels(&y, &ly, &by, &args.seg)?;
+            pers::matched_segment_indicators(&a, &bx, &b, &by)
+        }
+        RegionKind::Mser => match (&x, &y) {
+            (Shape::Mesh(mx), Shape::Mesh(my)) => {
+                mser::matched_mser_indicators((mx, &bx), (my, &by), &mser::MserOptions::default())
+            }
+            _ => Err(Error::invalid("--kind", "mser needs two triangle meshes")),
+        },
+    })?;
+    st.run("write", || {
+        std::fs::create_dir_all(&args.output).map_err(|e| Error::io(&args.output, e))?;
+        funcorr::io::npy::write_npy_matrix(&args.output.join("F.npy"), &f.to_dense())?;
+        funcorr::io::npy::write_npy_matrix(&args.output.join("G.npy"), &g.to_dense())?;
+        let list: Vec<serde_json::Value> = (0..f.q())
+            .map(|j| serde_json::json!({"x": f.names[j], "y": g.names[j], "cost": matches.get(j).map(|m| m.cost)}))
+            .collect();
+        let path = args.output.join("matches.json");
+        let text = serde_json::to_string_pretty(&serde_json::json!({ "pairs": list })).expect("plain JSON");
+        std::fs::write(&path, text).map_err(|e| Error::io(&path, e))
+    })?;
+    st.note(format!("{} matched regions", f.q()));
     st.finish();
     Ok(())
 }

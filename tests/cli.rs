@@ -282,3 +282,104 @@ fn descriptors_command_writes_npy() {
     assert_fails(&run_kind("hkm", &["--seeds", seeds.to_str().unwrap()]), "out of range");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn segmentation_regions_and_matching_from_the_cli() {
+    use funcorr::io::npy::read_npy_matrix;
+    let d = tmp("regions");
+    let (x, y) = (data("tr_reg_000.off"), data("tr_reg_001.off"));
+    let (xs, ys) = (x.to_str().unwrap(), y.to_str().unwrap());
+    let cache = d.join("cache");
+    let cache = cache.to_str().unwrap();
+    let f = d.join("F.npy");
+    let labels = d.join("labels.txt");
+    // Persistence segmentation of a FAUST human: head, two hands, two feet.
+    let r = run(&[
+        "descriptors",
+        xs,
+        "--kind",
+        "persistence",
+        "-o",
+        f.to_str().unwrap(),
+        "--write-labels",
+        labels.to_str().unwrap(),
+        "--cache-dir",
+        cache,
+    ]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert_eq!(read_npy_matrix(&f).unwrap().cols, 5);
+    assert_eq!(std::fs::read_to_string(&labels).unwrap().lines().count(), 4999);
+    // Localized WKS on the persistence segments when no labels are given.
+    let r = run(&[
+        "descriptors",
+        xs,
+        "--kind",
+        "localized",
+        "--count",
+        "4",
+        "-o",
+        f.to_str().unwrap(),
+        "--cache-dir",
+        cache,
+    ]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert_eq!(read_npy_matrix(&f).unwrap().cols, 5 * 4);
+    // ShapeMSER regions.
+    let r = run(&["descriptors", xs, "--kind", "mser", "-o", f.to_str().unwrap(), "--cache-dir", cache]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert!(read_npy_matrix(&f).unwrap().cols >= 10);
+    // Provided segmentations matched by signatures: labels agree between the two files.
+    let out = d.join("pair");
+    let (lx, ly) = (data("tr_reg_000_tr_reg_001.tr_reg_000.seg.sym"), data("tr_reg_000_tr_reg_001.tr_reg_001.seg.sym"));
+    let r = run(&[
+        "regions",
+        xs,
+        ys,
+        "--kind",
+        "labels",
+        "--labels-x",
+        lx.to_str().unwrap(),
+        "--labels-y",
+        ly.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--cache-dir",
+        cache,
+    ]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let (fm, gm) = (read_npy_matrix(&out.join("F.npy")).unwrap(), read_npy_matrix(&out.join("G.npy")).unwrap());
+    assert_eq!((fm.rows, fm.cols, gm.rows, gm.cols), (4999, 11, 5000, 11));
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("matches.json")).unwrap()).unwrap();
+    let pairs = m["pairs"].as_array().unwrap();
+    let same = pairs.iter().filter(|p| p["x"] == p["y"]).count();
+    assert!(same >= 10, "only {same} of 11 provided segments matched to their counterpart");
+    // Persistence and MSER regions of the pair.
+    for (kind, min_cols) in [("persistence", 5), ("mser", 20)] {
+        let r = run(&["regions", xs, ys, "--kind", kind, "-o", out.to_str().unwrap(), "--cache-dir", cache]);
+        assert!(r.status.success(), "{kind}: {}", text(&r.stderr));
+        let (fm, gm) = (read_npy_matrix(&out.join("F.npy")).unwrap(), read_npy_matrix(&out.join("G.npy")).unwrap());
+        assert!(fm.cols >= min_cols && fm.cols == gm.cols, "{kind}: {} vs {}", fm.cols, gm.cols);
+    }
+    // Bad parameters.
+    assert_fails(
+        &run(&[
+            "descriptors",
+            xs,
+            "--kind",
+            "persistence",
+            "--threshold",
+            "1.5",
+            "-o",
+            f.to_str().unwrap(),
+            "--cache-dir",
+            cache,
+        ]),
+        "threshold",
+    );
+    assert_fails(
+        &run(&["regions", xs, ys, "--kind", "labels", "-o", out.to_str().unwrap(), "--cache-dir", cache]),
+        "--labels-x",
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}

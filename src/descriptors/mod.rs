@@ -12,6 +12,8 @@
 //! Every function returns a [`Descriptors`]: the n × q matrix with a name for each column.
 
 pub mod matching;
+pub mod mser;
+pub mod persistence;
 pub mod signatures;
 
 use faer::Mat;
