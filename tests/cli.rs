@@ -205,6 +205,9 @@ fn demo_runs_on_bundled_data() {
     assert!(s.contains("tr_reg_000.off: 4999 vertices") && s.contains("tr_reg_001.off: 5000 vertices"), "{s}");
     assert_eq!(load_basis(&d.join("tr_reg_000.basis.npz")).unwrap().k(), 20);
     assert_eq!(load_basis(&d.join("tr_reg_001.basis.npz")).unwrap().n(), 5000);
+    assert!(s.contains("Persistence segments (scarce data): 5 on X, 5 on Y, 5 matched"), "{s}");
+    let f = funcorr::io::npy::read_npy_matrix(&d.join("F.npy")).unwrap();
+    assert_eq!((f.rows, f.cols), (4999, 5));
     std::fs::remove_dir_all(&d).unwrap();
 }
 

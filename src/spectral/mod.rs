@@ -19,6 +19,9 @@
 //!
 //! Small problems (n ≤ [`SpectralOptions::dense_below`]) use faer's dense symmetric eigensolver.
 //!
+//! Setting the environment variable `FUNCORR_DEBUG_LANCZOS` prints, at every restart, the basis
+//! size, the number of converged pairs and the worst residual estimate to stderr.
+//!
 //! Every returned pair is verified: the residual ‖Wφ − λAφ‖_{A⁻¹} / λ_max (λ_max the largest
 //! eigenvalue returned) must be ≤ [`SpectralOptions::max_residual`], else an error is returned.
 
