@@ -23,6 +23,7 @@ pub mod descriptors;
 pub mod error;
 pub mod io;
 pub mod laplacian;
+pub mod pointwise;
 pub mod primitives;
 pub mod shape;
 pub mod spectral;
