@@ -99,6 +99,11 @@ impl<'m> HeatGeodesics<'m> {
         Ok(HeatGeodesics { mesh, heat, poisson, cots, n: mesh.n_vertices() })
     }
 
+    /// Number of vertices n of the mesh.
+    pub fn n(&self) -> usize {
+        self.n
+    }
+
     /// Approximate geodesic distances from each of `sources` to every vertex: n × sources.len().
     pub fn distances(&self, sources: &[usize]) -> Result<Mat<f64>> {
         if let Some(&s) = sources.iter().find(|&&s| s >= self.n) {

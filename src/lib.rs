@@ -21,6 +21,7 @@
 
 pub mod descriptors;
 pub mod error;
+pub mod eval;
 pub mod geodesic;
 pub mod io;
 pub mod laplacian;
