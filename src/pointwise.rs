@@ -65,10 +65,28 @@ pub fn nearest_neighbors(reference: MatRef<f64>, query: MatRef<f64>) -> Result<V
     Ok(blocks.into_iter().flatten().collect())
 }
 
-/// Point-to-point map X → Y of a functional map C (k × k, coefficients on X → coefficients on
-/// Y) between the bases Φ (n × k') and Ψ (m × k'), k ≤ k': nearest neighbours of the rows of
-/// Φ_k Cᵀ among the rows of Ψ_k. Returns `map_xy` (length n, vertices of Y).
+/// Point-to-point map X → Y of a functional map C (k × k, coefficients on X → coefficients on Y)
+/// between the bases Φ (n × k') and Ψ (m × k'), k ≤ k', as in the paper (§2): vertex i of X goes
+/// to the vertex j of Y whose row of Ψ_k C is nearest to row i of Φ_k. Returns `map_xy`
+/// (length n, vertices of Y).
 pub fn map_from_fmap(phi: MatRef<f64>, psi: MatRef<f64>, c: MatRef<f64>) -> Result<Vec<usize>> {
+    let k = check_fmap(phi, psi, c)?;
+    let mut psi_c = Mat::<f64>::zeros(psi.nrows(), k);
+    matmul(psi_c.as_mut(), Accum::Replace, psi.subcols(0, k), c, 1.0, Par::Seq);
+    nearest_neighbors(psi_c.as_ref(), phi.subcols(0, k))
+}
+
+/// Point-to-point map Y → X induced by a functional map C (k × k, X → Y): vertex j of Y goes to
+/// the vertex of X whose row of Φ_k Cᵀ is nearest to row j of Ψ_k (the pull-back direction, as
+/// used by ZoomOut). Returns `map_yx` (length m, vertices of X).
+pub fn map_yx_from_fmap(phi: MatRef<f64>, psi: MatRef<f64>, c: MatRef<f64>) -> Result<Vec<usize>> {
+    let k = check_fmap(phi, psi, c)?;
+    let mut phi_ct = Mat::<f64>::zeros(phi.nrows(), k);
+    matmul(phi_ct.as_mut(), Accum::Replace, phi.subcols(0, k), c.transpose(), 1.0, Par::Seq);
+    nearest_neighbors(phi_ct.as_ref(), psi.subcols(0, k))
+}
+
+fn check_fmap(phi: MatRef<f64>, psi: MatRef<f64>, c: MatRef<f64>) -> Result<usize> {
     let k = c.nrows();
     if c.ncols() != k || k == 0 || k > phi.ncols() || k > psi.ncols() {
         return Err(Error::invalid(
@@ -82,9 +100,95 @@ pub fn map_from_fmap(phi: MatRef<f64>, psi: MatRef<f64>, c: MatRef<f64>) -> Resu
             ),
         ));
     }
-    let mut emb = Mat::<f64>::zeros(phi.nrows(), k);
-    matmul(emb.as_mut(), Accum::Replace, phi.subcols(0, k), c.transpose(), 1.0, Par::Seq);
-    nearest_neighbors(psi.subcols(0, k), emb.as_ref())
+    Ok(k)
+}
+
+/// Options of [`icp`].
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct IcpOptions {
+    /// Maximum number of iterations.
+    pub max_iterations: usize,
+}
+
+impl Default for IcpOptions {
+    fn default() -> Self {
+        IcpOptions { max_iterations: 50 }
+    }
+}
+
+/// The ICP-like refinement of Ovsjanikov et al. 2012 (paper §2): alternate the point-wise map
+/// (nearest rows of Ψ_k C for the rows of Φ_k) and the orthonormal C minimizing
+/// ‖Φ_k − Ψ_k[map] C‖ (orthogonal Procrustes: C = U Vᵀ from the SVD of Ψ_k[map]ᵀ Φ_k), until
+/// the map stops changing. Returns the refined C (k × k) and `map_xy` (length n).
+pub fn icp(phi: MatRef<f64>, psi: MatRef<f64>, c0: MatRef<f64>, opts: &IcpOptions) -> Result<(Mat<f64>, Vec<usize>)> {
+    let k = check_fmap(phi, psi, c0)?;
+    let (phi, psi) = (phi.subcols(0, k), psi.subcols(0, k));
+    let mut c = c0.to_owned();
+    let mut map = map_from_fmap(phi, psi, c.as_ref())?;
+    for _ in 0..opts.max_iterations {
+        let mut m = Mat::<f64>::zeros(k, k);
+        let psi_map = Mat::from_fn(phi.nrows(), k, |i, j| psi[(map[i], j)]);
+        matmul(m.as_mut(), Accum::Replace, psi_map.transpose(), phi, 1.0, Par::Seq);
+        let svd = m.svd().map_err(|e| Error::numerical("icp", format!("SVD failed: {e:?}")))?;
+        matmul(c.as_mut(), Accum::Replace, svd.U(), svd.V().transpose(), 1.0, Par::Seq);
+        let next = map_from_fmap(phi, psi, c.as_ref())?;
+        let changed = next != map;
+        map = next;
+        if !changed {
+            break;
+        }
+    }
+    Ok((c, map))
+}
+
+/// Options of [`zoomout`].
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ZoomOutOptions {
+    /// Final size K of the functional map.
+    pub k_final: usize,
+    /// Size increment per iteration.
+    pub step: usize,
+}
+
+/// ZoomOut (Melzi et al. 2019): spectral upsampling of a k × k functional map (X → Y) to
+/// K × K in steps: at each size k, the point-wise map Y → X of the current C gives the next
+/// C = Ψ_{k+s}ᵀ A_Y Φ_{k+s}[map_yx] ((k+s) × (k+s)). `mass_y` is A_Y (length m). Returns the
+/// final C (K × K) and `map_xy` (length n) from it.
+pub fn zoomout(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    mass_y: &[f64],
+    c0: MatRef<f64>,
+    opts: &ZoomOutOptions,
+) -> Result<(Mat<f64>, Vec<usize>)> {
+    let k0 = check_fmap(phi, psi, c0)?;
+    let kf = opts.k_final;
+    if kf < k0 || kf > phi.ncols() || kf > psi.ncols() || opts.step == 0 {
+        return Err(Error::invalid(
+            "zoomout",
+            format!(
+                "need {k0} ≤ K ≤ basis sizes ({}, {}) and step ≥ 1, got K = {kf}, step {}",
+                phi.ncols(),
+                psi.ncols(),
+                opts.step
+            ),
+        ));
+    }
+    if mass_y.len() != psi.nrows() {
+        return Err(Error::invalid("mass", format!("{} weights for {} vertices of Y", mass_y.len(), psi.nrows())));
+    }
+    let mut c = c0.to_owned();
+    let mut k = k0;
+    while k < kf {
+        let map_yx = map_yx_from_fmap(phi, psi, c.as_ref())?;
+        k = (k + opts.step).min(kf);
+        let a_psi = Mat::from_fn(psi.nrows(), k, |j, i| mass_y[j] * psi[(j, i)]);
+        let phi_map = Mat::from_fn(psi.nrows(), k, |j, i| phi[(map_yx[j], i)]);
+        c = Mat::<f64>::zeros(k, k);
+        matmul(c.as_mut(), Accum::Replace, a_psi.transpose(), phi_map.as_ref(), 1.0, Par::Seq);
+    }
+    let map = map_from_fmap(phi, psi, c.as_ref())?;
+    Ok((c, map))
 }
 
 #[cfg(test)]
@@ -121,6 +225,73 @@ mod tests {
         for (i, &p) in perm.iter().enumerate() {
             assert_eq!(map[p], i);
         }
+        let back = map_yx_from_fmap(phi.as_ref(), psi.as_ref(), c.as_ref()).unwrap();
+        assert_eq!(back, perm);
+    }
+
+    /// A random k × k orthonormal matrix (Q of a QR factorization).
+    fn orthonormal(k: usize, rng: &mut Normal) -> Mat<f64> {
+        let m = Mat::from_fn(k, k, |_, _| rng.sample());
+        m.qr().compute_thin_Q()
+    }
+
+    #[test]
+    fn icp_recovers_a_known_orthonormal_map() {
+        let mut rng = Normal::new(11);
+        let (n, k) = (400, 8);
+        let phi = Mat::from_fn(n, k, |_, _| rng.sample());
+        let c_true = orthonormal(k, &mut rng);
+        // Row perm[i] of Ψ is row i of Φ Cᵀ, so that Ψ[perm] C = Φ.
+        let perm: Vec<usize> = (0..n).map(|i| (i * 37 + 11) % n).collect();
+        let mut psi = Mat::<f64>::zeros(n, k);
+        for i in 0..n {
+            for a in 0..k {
+                psi[(perm[i], a)] = (0..k).map(|b| phi[(i, b)] * c_true[(a, b)]).sum();
+            }
+        }
+        let c0 = Mat::from_fn(k, k, |a, b| c_true[(a, b)] + 0.15 * rng.sample());
+        let (c, map) = icp(phi.as_ref(), psi.as_ref(), c0.as_ref(), &IcpOptions::default()).unwrap();
+        assert_eq!(map, perm);
+        assert!((&c - &c_true).norm_max() < 1e-10, "C error {}", (&c - &c_true).norm_max());
+    }
+
+    #[test]
+    fn zoomout_recovers_the_permutation_of_a_mesh() {
+        use crate::laplacian::cotangent;
+        use crate::primitives::icosphere;
+        use crate::shape::TriMesh;
+        use crate::spectral::{eigen_basis, SpectralOptions};
+        // A bumpy (asymmetric) sphere and a vertex-permuted copy.
+        let s = icosphere(3);
+        let bump = |p: [f64; 3]| {
+            let r = 1.0 + 0.15 * (3.0 * p[0] + 1.0).sin() * (2.0 * p[1] + 0.3).cos() + 0.1 * p[2].powi(3);
+            [1.3 * r * p[0], r * p[1], 0.9 * r * p[2]]
+        };
+        let n = s.n_vertices();
+        let x = TriMesh::new(s.vertices().iter().map(|&p| bump(p)).collect(), s.faces().to_vec()).unwrap();
+        let perm: Vec<usize> = (0..n).map(|i| (i * 101 + 7) % n).collect(); // Y vertex perm[i] = X vertex i
+        let mut yv = vec![[0.0; 3]; n];
+        for i in 0..n {
+            yv[perm[i]] = x.vertices()[i];
+        }
+        let yf = x
+            .faces()
+            .iter()
+            .map(|f| [perm[f[0] as usize] as u32, perm[f[1] as usize] as u32, perm[f[2] as usize] as u32])
+            .collect();
+        let y = TriMesh::new(yv, yf).unwrap();
+        let basis = |m: &TriMesh| eigen_basis(&cotangent(m).unwrap(), &SpectralOptions::new(40), None).unwrap().0;
+        let (bx, by) = (basis(&x), basis(&y));
+        // The true map as a functional map, truncated to 4 × 4 as a coarse start.
+        let full = Mat::from_fn(40, 40, |a, b| {
+            (0..n).map(|i| by.mass[perm[i]] * by.eigenvectors[(perm[i], a)] * bx.eigenvectors[(i, b)]).sum::<f64>()
+        });
+        let c0 = full.submatrix(0, 0, 4, 4).to_owned();
+        let opts = ZoomOutOptions { k_final: 40, step: 2 };
+        let (c, map) =
+            zoomout(bx.eigenvectors.as_ref(), by.eigenvectors.as_ref(), &by.mass, c0.as_ref(), &opts).unwrap();
+        assert_eq!((c.nrows(), c.ncols()), (40, 40));
+        assert_eq!(map, perm, "ZoomOut must recover the permutation exactly");
     }
 
     #[test]
@@ -132,5 +303,10 @@ mod tests {
         let nan = Mat::from_fn(5, 3, |_, _| f64::NAN);
         assert!(nearest_neighbors(a.as_ref(), nan.as_ref()).is_err());
         assert!(map_from_fmap(a.as_ref(), a.as_ref(), Mat::<f64>::identity(4, 4).as_ref()).is_err());
+        let i2 = Mat::<f64>::identity(2, 2);
+        let bad = ZoomOutOptions { k_final: 5, step: 1 };
+        assert!(zoomout(a.as_ref(), a.as_ref(), &[1.0; 5], i2.as_ref(), &bad).is_err());
+        let ok = ZoomOutOptions { k_final: 3, step: 1 };
+        assert!(zoomout(a.as_ref(), a.as_ref(), &[1.0; 4], i2.as_ref(), &ok).is_err());
     }
 }
