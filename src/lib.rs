@@ -29,5 +29,6 @@ pub mod pointwise;
 pub mod primitives;
 pub mod shape;
 pub mod spectral;
+pub mod viz;
 
 pub use error::{Error, Result};
