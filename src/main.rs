@@ -42,6 +42,13 @@ enum Command {
     /// label files, persistence segments or ShapeMSER regions, matched by their signatures.
     /// Writes OUTDIR/F.npy, OUTDIR/G.npy and OUTDIR/matches.json.
     Regions(RegionArgs),
+    /// Match X to Y: data functions on both shapes, a functional map, a point-to-point map.
+    /// Writes OUTDIR/map.txt (for every vertex of X its vertex on Y), map.npy, C.npy and
+    /// report.json.
+    Match(MatchArgs),
+    /// Evaluate a point-to-point map X → Y against ground-truth template correspondences
+    /// (.vts files) with the Princeton protocol: geodesic errors on Y / √area(Y).
+    Eval(EvalArgs),
     /// Run the default pipeline on a pair of bundled FAUST shapes and write results to
     /// ./funcorr-demo/.
     Demo {
@@ -235,6 +242,91 @@ struct DescriptorArgs {
     quiet: bool,
 }
 
+#[derive(Clone, Copy, PartialEq, ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+enum Refine {
+    /// Nearest neighbours in the spectral embedding only.
+    None,
+    /// The ICP refinement of Ovsjanikov et al. 2012 (orthonormal C).
+    Icp,
+    /// ZoomOut (Melzi et al. 2019) from k to --zoomout-to eigenpairs.
+    Zoomout,
+}
+
+#[derive(clap::Args)]
+struct MatchArgs {
+    /// Source shape X.
+    x: PathBuf,
+    /// Target shape Y.
+    y: PathBuf,
+    /// Corresponding data: `wks:N`, `hks:N`, `wks+hks:N`, `segments:X.seg,Y.seg` (labels that
+    /// agree between the files), `persistence`, `mser`, `landmarks:pairs.txt` (0-based `i j`
+    /// per line), or `matrix:F.npy,G.npy`.
+    #[arg(long, default_value = "wks:100")]
+    data: String,
+    /// Size k of the functional map (k × k).
+    #[arg(short, default_value_t = 50)]
+    k: usize,
+    /// Number of eigenpairs computed per shape (≥ k and ≥ --zoomout-to).
+    #[arg(long, default_value_t = 200)]
+    kprime: usize,
+    /// Weight μ_c of the Laplacian-commutativity term of the least-squares map (0: the paper's eq. (5)).
+    #[arg(long, default_value_t = 1e-3)]
+    commutativity: f64,
+    /// Point-wise refinement.
+    #[arg(long, value_enum, default_value = "zoomout")]
+    refine: Refine,
+    /// Final size of ZoomOut.
+    #[arg(long, default_value_t = 150)]
+    zoomout_to: usize,
+    /// Size increment per ZoomOut iteration (1 as in Melzi et al.; larger is faster).
+    #[arg(long, default_value_t = 1)]
+    zoomout_step: usize,
+    /// Write map.txt with 1-based vertex ids (MATLAB).
+    #[arg(long)]
+    one_based: bool,
+    /// Output directory.
+    #[arg(short, long)]
+    output: PathBuf,
+    #[command(flatten)]
+    seg: SegmentationArgs,
+    #[command(flatten)]
+    lap: LaplacianArgs,
+    #[command(flatten)]
+    cache: CacheArgs,
+    /// No timings on stderr.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+#[derive(clap::Args)]
+struct EvalArgs {
+    /// Source shape X.
+    #[arg(long)]
+    source: PathBuf,
+    /// Target shape Y (a triangle mesh).
+    #[arg(long)]
+    target: PathBuf,
+    /// The map: one vertex id of Y per line for every vertex of X (map.txt of `funcorr match`).
+    #[arg(long)]
+    map: PathBuf,
+    /// The map file is 1-based.
+    #[arg(long)]
+    one_based: bool,
+    /// Template points on X (1-based .vts).
+    #[arg(long)]
+    gt_source: PathBuf,
+    /// Corresponding template points on Y (1-based .vts).
+    #[arg(long)]
+    gt_target: PathBuf,
+    /// Left–right mirrored template points on Y (1-based .sym.vts): allow symmetric flips.
+    #[arg(long)]
+    gt_target_sym: Option<PathBuf>,
+    /// Print JSON (summary, cumulative curve, per-point errors) instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
 #[derive(Clone, Copy, PartialEq, ValueEnum)]
 enum RegionKind {
     /// Segments given by --labels-x and --labels-y (e.g. the data set's segmentations).
@@ -364,6 +456,8 @@ fn main() -> ExitCode {
         Command::Spectrum(args) => spectrum(&args),
         Command::Descriptors(args) => descriptors(&args),
         Command::Regions(args) => regions(&args),
+        Command::Match(args) => match_shapes(&args),
+        Command::Eval(args) => eval(&args),
         Command::Demo { out, k } => demo(&out, k),
     };
     match result {
@@ -673,6 +767,210 @@ fn regions(args: &RegionArgs) -> Result<()> {
     })?;
     st.note(format!("{} matched regions", f.q()));
     st.finish();
+    Ok(())
+}
+
+/// Data functions F on X and G on Y from a `--data` spec (see `funcorr match --help`).
+fn pair_data(
+    spec: &str,
+    (x, lx, bx): (&Shape, &Laplacian, &Basis),
+    (y, ly, by): (&Shape, &Laplacian, &Basis),
+    seg: &SegmentationArgs,
+) -> Result<(funcorr::descriptors::Descriptors, funcorr::descriptors::Descriptors)> {
+    use funcorr::descriptors::{self as desc, persistence as pers, signatures as sig};
+    let (kind, arg) = spec.split_once(':').unwrap_or((spec, ""));
+    let bad = |msg: String| Error::invalid("--data", format!("'{spec}': {msg}"));
+    let count = || arg.parse::<usize>().map_err(|_| bad("expected a count, e.g. wks:100".into()));
+    let two_paths = || -> Result<(PathBuf, PathBuf)> {
+        let (a, b) = arg.split_once(',').ok_or_else(|| bad("expected two files separated by a comma".into()))?;
+        Ok((PathBuf::from(a), PathBuf::from(b)))
+    };
+    let sigs = |b: &Basis, wks: bool, hks: bool, n: usize| -> Result<desc::Descriptors> {
+        let w = if wks { Some(sig::wks(b, n, true)?) } else { None };
+        let h = if hks { Some(sig::hks(b, &sig::hks_times(b, n)?, true)?) } else { None };
+        match (w, h) {
+            (Some(w), Some(h)) => w.concat(&h),
+            (Some(w), None) => Ok(w),
+            (None, Some(h)) => Ok(h),
+            (None, None) => unreachable!("at least one signature"),
+        }
+    };
+    match kind {
+        "wks" => Ok((sigs(bx, true, false, count()?)?, sigs(by, true, false, count()?)?)),
+        "hks" => Ok((sigs(bx, false, true, count()?)?, sigs(by, false, true, count()?)?)),
+        "wks+hks" => Ok((sigs(bx, true, true, count()?)?, sigs(by, true, true, count()?)?)),
+        "segments" => {
+            let (a, b) = two_paths()?;
+            let la = funcorr::io::indices::read_labels_file(&a, x.n_vertices())?;
+            let lb = funcorr::io::indices::read_labels_file(&b, y.n_vertices())?;
+            // Labels agree between the files: keep the labels present on both, in order.
+            let (fa, fb) = (desc::segments(&la)?, desc::segments(&lb)?);
+            let common: Vec<&String> = fa.names.iter().filter(|n| fb.names.contains(n)).collect();
+            if common.is_empty() {
+                return Err(bad("the two label files share no label".into()));
+            }
+            let pick = |d: &desc::Descriptors| {
+                let cols: Vec<usize> =
+                    common.iter().map(|c| d.names.iter().position(|n| n == *c).expect("common")).collect();
+                desc::Descriptors::new(
+                    faer::Mat::from_fn(d.n(), cols.len(), |i, j| d.values[(i, cols[j])]),
+                    cols.iter().map(|&c| d.names[c].clone()).collect(),
+                )
+            };
+            Ok((pick(&fa)?, pick(&fb)?))
+        }
+        "persistence" => {
+            let a = persistence_labels(x, lx, bx, seg)?;
+            let b = persistence_labels(y, ly, by, seg)?;
+            let (f, g, _) = pers::matched_segment_indicators(&a, bx, &b, by)?;
+            Ok((f, g))
+        }
+        "mser" => match (x, y) {
+            (Shape::Mesh(mx), Shape::Mesh(my)) => {
+                let (f, g, _) =
+                    desc::mser::matched_mser_indicators((mx, bx), (my, by), &desc::mser::MserOptions::default())?;
+                Ok((f, g))
+            }
+            _ => Err(bad("mser needs two triangle meshes".into())),
+        },
+        "landmarks" => {
+            let pairs =
+                funcorr::io::indices::read_index_pairs_file(Path::new(arg), false, x.n_vertices(), y.n_vertices())?;
+            let (a, b): (Vec<usize>, Vec<usize>) = pairs.into_iter().unzip();
+            Ok((desc::landmarks(x.n_vertices(), &a)?, desc::landmarks(y.n_vertices(), &b)?))
+        }
+        "matrix" => {
+            let (a, b) = two_paths()?;
+            let f = desc::Descriptors::from_matrix(&funcorr::io::read_matrix(&a)?, x.n_vertices())?;
+            let g = desc::Descriptors::from_matrix(&funcorr::io::read_matrix(&b)?, y.n_vertices())?;
+            Ok((f, g))
+        }
+        _ => {
+            Err(bad("unknown kind (wks:N, hks:N, wks+hks:N, segments:A,B, persistence, mser, landmarks:F, matrix:F,G)"
+                .into()))
+        }
+    }
+}
+
+/// Geometry of a shape for writing (None for feature matrices of dimension ≠ 3).
+fn mesh_data(shape: &Shape) -> Option<funcorr::io::MeshData> {
+    match shape {
+        Shape::Mesh(m) => {
+            Some(funcorr::io::MeshData { vertices: m.vertices().to_vec(), faces: m.faces().to_vec(), colors: None })
+        }
+        Shape::Points(p) if p.dim() == 3 => Some(funcorr::io::MeshData {
+            vertices: p.coords().chunks(3).map(|c| [c[0], c[1], c[2]]).collect(),
+            faces: vec![],
+            colors: None,
+        }),
+        Shape::Points(_) => None,
+    }
+}
+
+fn match_shapes(args: &MatchArgs) -> Result<()> {
+    use funcorr::fmap::{ovsjanikov, OvsjanikovOptions};
+    use funcorr::pointwise;
+    let mut st = Stages { quiet: args.quiet, parts: vec![] };
+    let kprime = args.kprime.max(args.k).max(if args.refine == Refine::Zoomout { args.zoomout_to } else { 0 });
+    let x = st.run("read", || Shape::load(&args.x))?;
+    let y = st.run("read", || Shape::load(&args.y))?;
+    let (lx, bx) = shape_basis(&x, &args.lap, &args.cache, kprime, None, &mut st)?;
+    let (ly, by) = shape_basis(&y, &args.lap, &args.cache, kprime, None, &mut st)?;
+    let (f, g) = st.run("data", || pair_data(&args.data, (&x, &lx, &bx), (&y, &ly, &by), &args.seg))?;
+    let opts = OvsjanikovOptions { commutativity: args.commutativity };
+    let c = st.run("functional map", || ovsjanikov(&bx, &by, &f, &g, args.k, &opts))?;
+    let (phi, psi) = (bx.eigenvectors.as_ref(), by.eigenvectors.as_ref());
+    let (c, map_xy) = st.run("point-wise map", || match args.refine {
+        Refine::None => Ok((c.clone(), pointwise::map_from_fmap(phi, psi, c.as_ref())?)),
+        Refine::Icp => pointwise::icp(phi, psi, c.as_ref(), &pointwise::IcpOptions::default()),
+        Refine::Zoomout => {
+            let o = pointwise::ZoomOutOptions { k_final: args.zoomout_to.max(args.k), step: args.zoomout_step };
+            pointwise::zoomout(phi, psi, &by.mass, c.as_ref(), &o)
+        }
+    })?;
+    let stages = st.parts.clone();
+    st.run("write", || {
+        let out = &args.output;
+        std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+        let base = usize::from(args.one_based);
+        let text: String = map_xy.iter().map(|j| format!("{}\n", j + base)).collect();
+        let p = out.join("map.txt");
+        std::fs::write(&p, text).map_err(|e| Error::io(&p, e))?;
+        funcorr::io::npy::write_npy_vec_u64(
+            &out.join("map.npy"),
+            &map_xy.iter().map(|&j| j as u64).collect::<Vec<_>>(),
+        )?;
+        let kk = c.nrows();
+        let dense =
+            funcorr::io::DenseMatrix { rows: kk, cols: kk, data: (0..kk * kk).map(|t| c[(t / kk, t % kk)]).collect() };
+        funcorr::io::npy::write_npy_matrix(&out.join("C.npy"), &dense)?;
+        let report = serde_json::json!({
+            "x": args.x.display().to_string(), "y": args.y.display().to_string(),
+            "n": x.n_vertices(), "m": y.n_vertices(),
+            "method": "fmap (Ovsjanikov et al. 2012, eq. (5))",
+            "data": args.data, "q": f.q(), "k": args.k, "kprime": kprime,
+            "commutativity": args.commutativity, "refine": args.refine, "final_k": kk,
+            "stages": stages,
+        });
+        let p = out.join("report.json");
+        std::fs::write(&p, serde_json::to_string_pretty(&report).expect("plain JSON")).map_err(|e| Error::io(&p, e))?;
+        // Colour transfer for MeshLab / Blender: X by position, Y pulled back through the map.
+        if let (Some(mut dx), Some(mut dy)) = (mesh_data(&x), mesh_data(&y)) {
+            let colors_x = funcorr::viz::position_colors(&dx.vertices);
+            let map_yx = pointwise::map_yx_from_fmap(phi, psi, c.as_ref())?;
+            dy.colors = funcorr::viz::pull_back_colors(&colors_x, &map_yx);
+            dx.colors = Some(colors_x);
+            funcorr::io::write_mesh(&out.join("X.ply"), &dx)?;
+            funcorr::io::write_mesh(&out.join("Y.ply"), &dy)?;
+        }
+        Ok(())
+    })?;
+    st.note(format!("q {} | C {}×{}", f.q(), c.nrows(), c.ncols()));
+    st.finish();
+    Ok(())
+}
+
+fn eval(args: &EvalArgs) -> Result<()> {
+    use funcorr::eval::{cumulative_curve, hard_errors, standard_thresholds, summarize, GroundTruth};
+    use funcorr::io::indices::read_index_list_file;
+    let x = Shape::load(&args.source)?;
+    let Shape::Mesh(y) = Shape::load(&args.target)? else {
+        return Err(Error::invalid("--target", "geodesic evaluation needs a triangle mesh"));
+    };
+    let (n, m) = (x.n_vertices(), y.n_vertices());
+    let map = read_index_list_file(&args.map, args.one_based, m)?;
+    if map.len() != n {
+        return Err(Error::parse(
+            &args.map,
+            None,
+            format!("expected {n} lines (one per vertex of X), found {}", map.len()),
+        ));
+    }
+    let gt = GroundTruth {
+        x: read_index_list_file(&args.gt_source, true, n)?,
+        y: read_index_list_file(&args.gt_target, true, m)?,
+        y_sym: args.gt_target_sym.as_ref().map(|p| read_index_list_file(p, true, m)).transpose()?,
+    };
+    let geo = funcorr::geodesic::HeatGeodesics::new(&y)?;
+    let errors = hard_errors(&map, &gt, &geo, y.total_area())?;
+    let s = summarize(&errors);
+    let thresholds = standard_thresholds();
+    let curve = cumulative_curve(&errors, &thresholds);
+    if args.json {
+        let v = serde_json::json!({
+            "summary": s, "symmetric": gt.y_sym.is_some(), "geodesics": "heat method (approximate)",
+            "thresholds": thresholds, "curve": curve, "errors": errors,
+        });
+        outln!("{}", serde_json::to_string_pretty(&v).expect("plain JSON"));
+    } else {
+        outln!("points            {}", errors.len());
+        outln!("symmetric flips   {}", if gt.y_sym.is_some() { "allowed" } else { "not allowed" });
+        outln!("mean error ×100   {:.3}", 100.0 * s.mean);
+        outln!("≤ 0.05            {:.1}%", 100.0 * s.at_005);
+        outln!("≤ 0.10            {:.1}%", 100.0 * s.at_010);
+        outln!("≤ 0.25            {:.1}%", 100.0 * s.at_025);
+        outln!("geodesics         heat method (approximate, ~1% mean relative error)");
+    }
     Ok(())
 }
 

@@ -386,3 +386,95 @@ fn segmentation_regions_and_matching_from_the_cli() {
     );
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn match_and_eval_on_the_bundled_pair() {
+    let d = tmp("match");
+    let (x, y) = (data("tr_reg_000.off"), data("tr_reg_001.off"));
+    let (xs, ys) = (x.to_str().unwrap(), y.to_str().unwrap());
+    let cache = d.join("cache");
+    let out = d.join("out");
+    let r = run(&[
+        "match",
+        xs,
+        ys,
+        "--data",
+        "wks:50",
+        "-k",
+        "30",
+        "--kprime",
+        "80",
+        "--zoomout-to",
+        "80",
+        "-o",
+        out.to_str().unwrap(),
+        "--cache-dir",
+        cache.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let map = std::fs::read_to_string(out.join("map.txt")).unwrap();
+    assert_eq!(map.lines().count(), 4999);
+    assert!(map.lines().all(|l| l.parse::<usize>().unwrap() < 5000));
+    for f in ["map.npy", "C.npy", "report.json", "X.ply", "Y.ply"] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["final_k"], 80);
+    // Evaluate against the bundled ground truth, symmetric flips allowed.
+    let e = run(&[
+        "eval",
+        "--source",
+        xs,
+        "--target",
+        ys,
+        "--map",
+        out.join("map.txt").to_str().unwrap(),
+        "--gt-source",
+        data("tr_reg_000.vts").to_str().unwrap(),
+        "--gt-target",
+        data("tr_reg_001.vts").to_str().unwrap(),
+        "--gt-target-sym",
+        data("tr_reg_001.sym.vts").to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(e.status.success(), "{}", text(&e.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&e.stdout).unwrap();
+    let mean = v["summary"]["mean"].as_f64().unwrap();
+    assert!(mean < 0.08, "mean geodesic error {mean}"); // WKS + commutativity + ZoomOut on a same-subject pair
+    assert_eq!(v["curve"].as_array().unwrap().len(), 51);
+    // Bad input: a map of the wrong length, an unknown data kind.
+    let short = d.join("short.txt");
+    std::fs::write(&short, "0\n1\n").unwrap();
+    assert_fails(
+        &run(&[
+            "eval",
+            "--source",
+            xs,
+            "--target",
+            ys,
+            "--map",
+            short.to_str().unwrap(),
+            "--gt-source",
+            data("tr_reg_000.vts").to_str().unwrap(),
+            "--gt-target",
+            data("tr_reg_001.vts").to_str().unwrap(),
+        ]),
+        "short.txt",
+    );
+    assert_fails(
+        &run(&[
+            "match",
+            xs,
+            ys,
+            "--data",
+            "nonsense:3",
+            "-o",
+            out.to_str().unwrap(),
+            "--cache-dir",
+            cache.to_str().unwrap(),
+        ]),
+        "--data",
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}

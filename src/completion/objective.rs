@@ -1,0 +1,238 @@
+//! The objective of problem (11): the weighted sum of the [`super::terms`].
+
+use faer::{Mat, MatRef};
+use serde::{Deserialize, Serialize};
+
+use super::terms::{self, TermValue};
+use super::Problem;
+
+/// Which norm the low-norm term μ4/2 (‖Ψ A‖² + ‖Φ B‖²) uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum LowNorm {
+    /// Euclidean Frobenius norms of the m × k and n × k matrices Ψ A, Φ B, as (11) is written:
+    /// ‖Φ B‖²_F = tr(Bᵀ (Φᵀ Φ) B) with the Gram matrix Φᵀ Φ (≠ I for mass-orthonormal bases).
+    Euclidean,
+    /// Mass-weighted norms ‖Φ B‖²_{A_X} = tr(Bᵀ Φᵀ A_X Φ B) = ‖B‖²_F: independent of the meshing.
+    Mass,
+}
+
+/// Parameters of problem (11). Defaults are the paper's: μ1 = μ2 = 1e-8, μ3 = 1e-5, μ4 = 1e-8,
+/// ξ = 1e-3, with the optional commutativity term off.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct CompletionParams {
+    /// Weight of the Dirichlet energy on X, tr(A Bᵀ Λ_X B Aᵀ).
+    pub mu1: f64,
+    /// Weight of the Dirichlet energy on Y, tr(B Aᵀ Λ_Y A Bᵀ).
+    pub mu2: f64,
+    /// Weight of the L1 term Σ √(t² + ξ) over the m × n matrix T.
+    pub mu3: f64,
+    /// Weight of the low-norm term ½ (‖Ψ A‖² + ‖Φ B‖²).
+    pub mu4: f64,
+    /// Smoothing of the absolute value, |t| ≈ √(t² + ξ).
+    pub xi: f64,
+    /// Weight of the optional Laplacian-commutativity term ‖C_c Λ_X − Λ_Y C_c‖² (0 = off).
+    pub mu_comm: f64,
+    /// Size k_c of the leading block C_c of C = A Bᵀ the commutativity term acts on (0 = all k').
+    pub k_comm: usize,
+    /// Norm of the low-norm term.
+    pub low_norm: LowNorm,
+    /// Rows of T per block of the L1 computation.
+    pub block_rows: usize,
+}
+
+impl Default for CompletionParams {
+    fn default() -> Self {
+        CompletionParams {
+            mu1: 1e-8,
+            mu2: 1e-8,
+            mu3: 1e-5,
+            mu4: 1e-8,
+            xi: 1e-3,
+            mu_comm: 0.0,
+            k_comm: 0,
+            low_norm: LowNorm::Euclidean,
+            block_rows: 512,
+        }
+    }
+}
+
+/// Weighted values of the terms of (11) at one point, and their sum.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Terms {
+    /// ‖A Bᵀ Â − B̂‖².
+    pub data: f64,
+    /// μ1 tr(A Bᵀ Λ_X B Aᵀ).
+    pub dirichlet_x: f64,
+    /// μ2 tr(B Aᵀ Λ_Y A Bᵀ).
+    pub dirichlet_y: f64,
+    /// μ3 Σ √(t² + ξ).
+    pub l1: f64,
+    /// μ4/2 (‖Ψ A‖² + ‖Φ B‖²).
+    pub low_norm: f64,
+    /// μ_c ‖C_c Λ_X − Λ_Y C_c‖².
+    pub commutativity: f64,
+    /// The objective, the sum of the above.
+    pub total: f64,
+}
+
+/// Objective value (per term) and gradient at one point.
+#[derive(Clone, Debug)]
+pub struct Evaluation {
+    /// The weighted terms.
+    pub terms: Terms,
+    /// ∂/∂A of the total (k' × k).
+    pub grad_a: Mat<f64>,
+    /// ∂/∂B of the total (k' × k).
+    pub grad_b: Mat<f64>,
+}
+
+fn check_shapes(problem: &Problem, a: MatRef<f64>, b: MatRef<f64>) {
+    let kp = problem.k_prime();
+    assert!(
+        a.nrows() == kp && b.nrows() == kp && a.ncols() == b.ncols(),
+        "A is {}×{} and B {}×{}; both must be k'×k with k' = {kp}",
+        a.nrows(),
+        a.ncols(),
+        b.nrows(),
+        b.ncols()
+    );
+}
+
+fn k_comm(problem: &Problem, params: &CompletionParams) -> usize {
+    if params.k_comm == 0 {
+        problem.k_prime()
+    } else {
+        params.k_comm.min(problem.k_prime())
+    }
+}
+
+/// The objective of (11) (plus the optional commutativity term) and its gradient at (A, B).
+/// Terms whose weight is 0 are skipped (value 0). Panics if A, B are not both k' × k.
+pub fn evaluate(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b: MatRef<f64>) -> Evaluation {
+    check_shapes(problem, a, b);
+    let mut grad_a = Mat::<f64>::zeros(a.nrows(), a.ncols());
+    let mut grad_b = Mat::<f64>::zeros(b.nrows(), b.ncols());
+    let mut add = |w: f64, t: TermValue| -> f64 {
+        grad_a += &t.grad_a * w;
+        grad_b += &t.grad_b * w;
+        w * t.value
+    };
+    let mut terms =
+        Terms { data: add(1.0, terms::data(a, b, problem.f_hat.as_ref(), problem.g_hat.as_ref())), ..Terms::default() };
+    if params.mu1 != 0.0 {
+        terms.dirichlet_x = add(params.mu1, terms::dirichlet_x(a, b, &problem.lambda_x));
+    }
+    if params.mu2 != 0.0 {
+        terms.dirichlet_y = add(params.mu2, terms::dirichlet_y(a, b, &problem.lambda_y));
+    }
+    if params.mu3 != 0.0 {
+        let t = terms::l1(a, b, problem.phi.as_ref(), problem.psi.as_ref(), params.xi, params.block_rows);
+        terms.l1 = add(params.mu3, t);
+    }
+    if params.mu4 != 0.0 {
+        let grams = match params.low_norm {
+            LowNorm::Euclidean => Some((problem.gram_x.as_ref(), problem.gram_y.as_ref())),
+            LowNorm::Mass => None,
+        };
+        terms.low_norm = add(params.mu4, terms::low_norm(a, b, grams));
+    }
+    if params.mu_comm != 0.0 {
+        let t = terms::commutativity(a, b, &problem.lambda_x, &problem.lambda_y, k_comm(problem, params));
+        terms.commutativity = add(params.mu_comm, t);
+    }
+    terms.total = terms.data + terms.dirichlet_x + terms.dirichlet_y + terms.l1 + terms.low_norm + terms.commutativity;
+    Evaluation { terms, grad_a, grad_b }
+}
+
+/// The weighted terms of the objective at (A, B) without gradients (the L1 term costs 2·m·n·k
+/// flops instead of 6·m·n·k).
+pub fn value(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b: MatRef<f64>) -> Terms {
+    check_shapes(problem, a, b);
+    let mut terms =
+        Terms { data: terms::data(a, b, problem.f_hat.as_ref(), problem.g_hat.as_ref()).value, ..Terms::default() };
+    if params.mu1 != 0.0 {
+        terms.dirichlet_x = params.mu1 * terms::dirichlet_x(a, b, &problem.lambda_x).value;
+    }
+    if params.mu2 != 0.0 {
+        terms.dirichlet_y = params.mu2 * terms::dirichlet_y(a, b, &problem.lambda_y).value;
+    }
+    if params.mu3 != 0.0 {
+        terms.l1 = params.mu3
+            * terms::l1_value(a, b, problem.phi.as_ref(), problem.psi.as_ref(), params.xi, params.block_rows);
+    }
+    if params.mu4 != 0.0 {
+        let grams = match params.low_norm {
+            LowNorm::Euclidean => Some((problem.gram_x.as_ref(), problem.gram_y.as_ref())),
+            LowNorm::Mass => None,
+        };
+        terms.low_norm = params.mu4 * terms::low_norm(a, b, grams).value;
+    }
+    if params.mu_comm != 0.0 {
+        terms.commutativity = params.mu_comm
+            * terms::commutativity(a, b, &problem.lambda_x, &problem.lambda_y, k_comm(problem, params)).value;
+    }
+    terms.total = terms.data + terms.dirichlet_x + terms.dirichlet_y + terms.l1 + terms.low_norm + terms.commutativity;
+    terms
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::completion::testutil::{dot, randn};
+
+    /// A small random problem (random bases: the formulas do not need orthonormality).
+    pub(crate) fn random_problem(n: usize, m: usize, kp: usize, q: usize, seed: u64) -> Problem {
+        let phi = randn(n, kp, seed) * 0.2;
+        let psi = randn(m, kp, seed + 1) * 0.2;
+        let lx: Vec<f64> = (0..kp).map(|i| i as f64 * 0.7).collect();
+        let ly: Vec<f64> = (0..kp).map(|i| i as f64 * 0.75 + 0.01).collect();
+        Problem::from_coefficients(phi, psi, lx, ly, randn(kp, q, seed + 2), randn(kp, q, seed + 3)).unwrap()
+    }
+
+    #[test]
+    fn total_gradient_matches_finite_differences() {
+        let p = random_problem(50, 40, 8, 6, 1000);
+        // Weights large enough that every term matters.
+        for low_norm in [LowNorm::Euclidean, LowNorm::Mass] {
+            let params = CompletionParams {
+                mu1: 0.1,
+                mu2: 0.2,
+                mu3: 0.05,
+                mu4: 0.3,
+                xi: 1e-2,
+                mu_comm: 0.01,
+                k_comm: 6,
+                low_norm,
+                block_rows: 16,
+            };
+            let (a, b) = (randn(8, 5, 1), randn(8, 5, 2));
+            let e = evaluate(&p, &params, a.as_ref(), b.as_ref());
+            let t = &e.terms;
+            let sum = t.data + t.dirichlet_x + t.dirichlet_y + t.l1 + t.low_norm + t.commutativity;
+            assert!((t.total - sum).abs() < 1e-12 * t.total.abs());
+            assert!([t.dirichlet_x, t.dirichlet_y, t.l1, t.low_norm, t.commutativity].iter().all(|&v| v > 0.0));
+            let v = value(&p, &params, a.as_ref(), b.as_ref());
+            assert!((v.total - t.total).abs() < 1e-12 * t.total);
+            let (da, db) = (randn(8, 5, 3), randn(8, 5, 4));
+            let h = 1e-5;
+            let fp = value(&p, &params, (&a + &da * h).as_ref(), (&b + &db * h).as_ref()).total;
+            let fm = value(&p, &params, (&a - &da * h).as_ref(), (&b - &db * h).as_ref()).total;
+            let fd = (fp - fm) / (2.0 * h);
+            let an = dot(&e.grad_a, &da) + dot(&e.grad_b, &db);
+            assert!((fd - an).abs() < 1e-5 * an.abs(), "{fd} vs {an}");
+        }
+    }
+
+    #[test]
+    fn paper_defaults_and_zero_weights() {
+        let d = CompletionParams::default();
+        assert_eq!((d.mu1, d.mu2, d.mu3, d.mu4, d.xi, d.mu_comm), (1e-8, 1e-8, 1e-5, 1e-8, 1e-3, 0.0));
+        let p = random_problem(30, 30, 6, 4, 7);
+        let zero = CompletionParams { mu1: 0.0, mu2: 0.0, mu3: 0.0, mu4: 0.0, ..d };
+        let (a, b) = (randn(6, 4, 5), randn(6, 4, 6));
+        let e = evaluate(&p, &zero, a.as_ref(), b.as_ref());
+        let data = terms::data(a.as_ref(), b.as_ref(), p.f_hat.as_ref(), p.g_hat.as_ref());
+        assert_eq!(e.terms.total, data.value);
+        assert_eq!(e.grad_a, data.grad_a);
+    }
+}

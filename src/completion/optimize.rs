@@ -1,0 +1,529 @@
+//! Minimization of (11) over x = (A, B) by L-BFGS with a strong-Wolfe line search, and the
+//! paper's initializations.
+
+use std::collections::VecDeque;
+use std::time::Instant;
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
+use faer::{Mat, MatRef, Par};
+use serde::Serialize;
+
+use super::objective::{evaluate, CompletionParams, Evaluation, Terms};
+use super::Problem;
+use crate::error::{Error, Result};
+
+/// Options of [`optimize`].
+#[derive(Clone, Debug, Serialize)]
+pub struct OptimizeOptions {
+    /// Iteration cap.
+    pub max_iterations: usize,
+    /// Stop when the relative decrease of the objective in one iteration, (f_old − f)/|f_old|,
+    /// falls to this value or below.
+    pub rel_tol: f64,
+    /// Also stop when ‖∇f‖ ≤ `grad_tol`·‖∇f(x₀)‖.
+    pub grad_tol: f64,
+    /// Number of (s, y) pairs L-BFGS keeps.
+    pub memory: usize,
+    /// Objective evaluations allowed per line search.
+    pub max_line_search: usize,
+    /// Sufficient-decrease constant c1 of the Wolfe conditions.
+    pub c1: f64,
+    /// Curvature constant c2 of the strong Wolfe conditions.
+    pub c2: f64,
+}
+
+impl Default for OptimizeOptions {
+    fn default() -> Self {
+        OptimizeOptions {
+            max_iterations: 300,
+            rel_tol: 1e-6,
+            grad_tol: 1e-10,
+            memory: 10,
+            max_line_search: 25,
+            c1: 1e-4,
+            c2: 0.9,
+        }
+    }
+}
+
+/// What [`optimize`] did.
+#[derive(Clone, Debug, Serialize)]
+pub struct CompletionReport {
+    /// Accepted L-BFGS steps.
+    pub iterations: usize,
+    /// Objective + gradient evaluations, line searches included.
+    pub evaluations: usize,
+    /// True when a tolerance was met (not the iteration cap or a failed line search).
+    pub converged: bool,
+    /// Why the optimization stopped.
+    pub stop_reason: String,
+    /// The weighted terms at the start.
+    pub initial_terms: Terms,
+    /// The weighted terms at the end.
+    pub terms: Terms,
+    /// The objective after each iteration, starting with the initial value.
+    pub objective_history: Vec<f64>,
+    /// ‖∇f‖ at the start.
+    pub gradient_norm_initial: f64,
+    /// ‖∇f‖ at the end.
+    pub gradient_norm_final: f64,
+    /// Wall time of the whole optimization.
+    pub seconds_total: f64,
+    /// Wall time per iteration (total / max(iterations, 1)).
+    pub seconds_per_iteration: f64,
+}
+
+/// x = (vec A, vec B), column-major.
+fn pack(a: MatRef<f64>, b: MatRef<f64>) -> Vec<f64> {
+    let mut x = Vec::with_capacity(2 * a.nrows() * a.ncols());
+    for m in [a, b] {
+        for j in 0..m.ncols() {
+            for i in 0..m.nrows() {
+                x.push(m[(i, j)]);
+            }
+        }
+    }
+    x
+}
+
+fn unpack(x: &[f64], kp: usize, k: usize) -> (Mat<f64>, Mat<f64>) {
+    let half = kp * k;
+    let a = Mat::from_fn(kp, k, |i, j| x[j * kp + i]);
+    let b = Mat::from_fn(kp, k, |i, j| x[half + j * kp + i]);
+    (a, b)
+}
+
+fn dot(x: &[f64], y: &[f64]) -> f64 {
+    x.iter().zip(y).map(|(a, b)| a * b).sum()
+}
+
+fn axpy(alpha: f64, x: &[f64], y: &[f64]) -> Vec<f64> {
+    x.iter().zip(y).map(|(xi, yi)| yi + alpha * xi).collect()
+}
+
+/// A point of the line search: step, objective, directional derivative, gradient and terms.
+struct Point {
+    alpha: f64,
+    f: f64,
+    d: f64,
+    grad: Vec<f64>,
+    terms: Terms,
+}
+
+/// Minimizer of the cubic through (a0, f0, d0), (a1, f1, d1), safeguarded to the inner 80 % of
+/// the interval (bisection when the cubic has no minimizer).
+fn cubic_step(lo: &Point, hi: &Point) -> f64 {
+    let (a0, a1) = (lo.alpha, hi.alpha);
+    let d1 = lo.d + hi.d - 3.0 * (lo.f - hi.f) / (a0 - a1);
+    let disc = d1 * d1 - lo.d * hi.d;
+    let mid = 0.5 * (a0 + a1);
+    let mut a = if disc >= 0.0 {
+        let d2 = (a1 - a0).signum() * disc.sqrt();
+        a1 - (a1 - a0) * (hi.d + d2 - d1) / (hi.d - lo.d + 2.0 * d2)
+    } else {
+        mid
+    };
+    let (left, right) = (a0.min(a1), a0.max(a1));
+    let w = right - left;
+    if !a.is_finite() || a < left + 0.1 * w || a > right - 0.1 * w {
+        a = if a.is_finite() { a.clamp(left + 0.1 * w, right - 0.1 * w) } else { mid };
+    }
+    a
+}
+
+/// Strong-Wolfe line search (Nocedal & Wright, Algorithms 3.5 and 3.6, cubic interpolation).
+/// Returns the accepted point, which always satisfies sufficient decrease; if the curvature
+/// condition is not met within the budget, the best sufficient-decrease point found is
+/// returned; `None` if there is none.
+fn line_search(
+    eval: &mut dyn FnMut(f64) -> Point,
+    f0: f64,
+    d0: f64,
+    alpha0: f64,
+    opts: &OptimizeOptions,
+) -> Option<Point> {
+    let armijo = |p: &Point| p.f <= f0 + opts.c1 * p.alpha * d0;
+    let curvature = |p: &Point| p.d.abs() <= -opts.c2 * d0;
+    let mut best: Option<Point> = None;
+    let keep = |p: &Point, best: &mut Option<Point>| {
+        if armijo(p) && best.as_ref().is_none_or(|b| p.f < b.f) {
+            *best = Some(Point { alpha: p.alpha, f: p.f, d: p.d, grad: p.grad.clone(), terms: p.terms.clone() });
+        }
+    };
+    let mut prev = Point { alpha: 0.0, f: f0, d: d0, grad: Vec::new(), terms: Terms::default() };
+    let mut alpha = alpha0;
+    let mut evals = 0;
+    // Bracketing phase.
+    let (mut lo, mut hi) = loop {
+        if evals >= opts.max_line_search {
+            return best;
+        }
+        let p = eval(alpha);
+        evals += 1;
+        keep(&p, &mut best);
+        if !p.f.is_finite() || !armijo(&p) || (evals > 1 && p.f >= prev.f) {
+            break (prev, p);
+        }
+        if curvature(&p) {
+            return Some(p);
+        }
+        if p.d >= 0.0 {
+            break (p, prev);
+        }
+        alpha = 2.0 * p.alpha;
+        prev = p;
+    };
+    // Zoom phase: lo satisfies sufficient decrease with the lowest f so far.
+    loop {
+        if evals >= opts.max_line_search || (hi.alpha - lo.alpha).abs() < 1e-16 * lo.alpha.abs().max(1e-300) {
+            return best;
+        }
+        let a = if hi.f.is_finite() { cubic_step(&lo, &hi) } else { 0.5 * (lo.alpha + hi.alpha) };
+        let p = eval(a);
+        evals += 1;
+        keep(&p, &mut best);
+        if !p.f.is_finite() || !armijo(&p) || p.f >= lo.f {
+            hi = p;
+        } else {
+            if curvature(&p) {
+                return Some(p);
+            }
+            if p.d * (hi.alpha - lo.alpha) >= 0.0 {
+                hi = lo;
+            }
+            lo = p;
+        }
+    }
+}
+
+/// Minimizes (11) over (A, B) from (`a0`, `b0`) (both k' × k) by L-BFGS with a strong-Wolfe
+/// line search. Every accepted step satisfies sufficient decrease, so the objective is
+/// non-increasing. Stops on relative objective change ≤ `rel_tol`, on ‖∇f‖ ≤ `grad_tol`·‖∇f₀‖,
+/// at the iteration cap, or when a line search finds no decrease.
+pub fn optimize(
+    problem: &Problem,
+    params: &CompletionParams,
+    opts: &OptimizeOptions,
+    a0: MatRef<f64>,
+    b0: MatRef<f64>,
+) -> Result<(Mat<f64>, Mat<f64>, CompletionReport)> {
+    let kp = problem.k_prime();
+    if a0.nrows() != kp || b0.nrows() != kp || a0.ncols() != b0.ncols() || a0.ncols() == 0 {
+        return Err(Error::invalid(
+            "initialization",
+            format!(
+                "A is {}×{} and B {}×{}; both must be k'×k with k' = {kp} and k ≥ 1",
+                a0.nrows(),
+                a0.ncols(),
+                b0.nrows(),
+                b0.ncols()
+            ),
+        ));
+    }
+    if a0.ncols() > kp {
+        return Err(Error::invalid("k", format!("k = {} exceeds k' = {kp}", a0.ncols())));
+    }
+    let k = a0.ncols();
+    let start = Instant::now();
+    let mut evaluations = 0usize;
+    let mut eval_at = |x: &[f64]| -> Evaluation {
+        evaluations += 1;
+        let (a, b) = unpack(x, kp, k);
+        evaluate(problem, params, a.as_ref(), b.as_ref())
+    };
+    let grad_of = |e: &Evaluation| pack(e.grad_a.as_ref(), e.grad_b.as_ref());
+
+    let mut x = pack(a0, b0);
+    let e0 = eval_at(&x);
+    if !e0.terms.total.is_finite() {
+        return Err(Error::numerical("completion", "the objective is not finite at the initialization"));
+    }
+    let initial_terms = e0.terms.clone();
+    let mut f = e0.terms.total;
+    let mut terms = e0.terms.clone();
+    let mut g = grad_of(&e0);
+    let g0_norm = dot(&g, &g).sqrt();
+    let mut history = vec![f];
+    let mut pairs: VecDeque<(Vec<f64>, Vec<f64>, f64)> = VecDeque::new(); // (s, y, 1/yᵀs)
+    let mut iterations = 0;
+    let (mut converged, mut stop_reason) = (false, String::from("iteration cap reached"));
+    if g0_norm == 0.0 {
+        converged = true;
+        stop_reason = "zero gradient at the initialization".into();
+    }
+    while !converged && iterations < opts.max_iterations {
+        // Two-loop recursion: p = −H g.
+        let mut q = g.clone();
+        let mut alphas = Vec::with_capacity(pairs.len());
+        for (s, y, rho) in pairs.iter().rev() {
+            let a = rho * dot(s, &q);
+            q = axpy(-a, y, &q);
+            alphas.push(a);
+        }
+        if let Some((s, y, _)) = pairs.back() {
+            let gamma = dot(s, y) / dot(y, y);
+            q.iter_mut().for_each(|v| *v *= gamma);
+        }
+        for ((s, y, rho), a) in pairs.iter().zip(alphas.iter().rev()) {
+            let b = rho * dot(y, &q);
+            q = axpy(a - b, s, &q);
+        }
+        let mut p: Vec<f64> = q.iter().map(|v| -v).collect();
+        let mut d0 = dot(&p, &g);
+        if d0.is_nan() || d0 >= 0.0 {
+            // Not a descent direction: restart from steepest descent.
+            pairs.clear();
+            p = g.iter().map(|v| -v).collect();
+            d0 = dot(&p, &g);
+        }
+        let alpha0 = if pairs.is_empty() { (1.0 / dot(&p, &p).sqrt()).min(1.0) } else { 1.0 };
+        let xc = x.clone();
+        let pc = p.clone();
+        let mut phi = |alpha: f64| -> Point {
+            let xa = axpy(alpha, &pc, &xc);
+            let e = eval_at(&xa);
+            let grad = grad_of(&e);
+            Point { alpha, f: e.terms.total, d: dot(&grad, &pc), grad, terms: e.terms }
+        };
+        let Some(pt) = line_search(&mut phi, f, d0, alpha0, opts) else {
+            if !pairs.is_empty() {
+                // Retry from steepest descent before giving up.
+                pairs.clear();
+                continue;
+            }
+            stop_reason = "line search found no decrease along the steepest descent direction".into();
+            break;
+        };
+        let x_new = axpy(pt.alpha, &p, &x);
+        let s: Vec<f64> = x_new.iter().zip(&x).map(|(a, b)| a - b).collect();
+        let y: Vec<f64> = pt.grad.iter().zip(&g).map(|(a, b)| a - b).collect();
+        let sy = dot(&s, &y);
+        if sy > 1e-12 * dot(&s, &s).sqrt() * dot(&y, &y).sqrt() {
+            if pairs.len() == opts.memory.max(1) {
+                pairs.pop_front();
+            }
+            pairs.push_back((s, y, 1.0 / sy));
+        }
+        let f_old = f;
+        x = x_new;
+        f = pt.f;
+        g = pt.grad;
+        terms = pt.terms;
+        iterations += 1;
+        history.push(f);
+        if f_old - f <= opts.rel_tol * f_old.abs() {
+            converged = true;
+            stop_reason = format!("relative objective change ≤ {:e}", opts.rel_tol);
+        } else if dot(&g, &g).sqrt() <= opts.grad_tol * g0_norm {
+            converged = true;
+            stop_reason = format!("gradient norm ≤ {:e} of its initial value", opts.grad_tol);
+        }
+    }
+    let seconds_total = start.elapsed().as_secs_f64();
+    let (a, b) = unpack(&x, kp, k);
+    let report = CompletionReport {
+        iterations,
+        evaluations,
+        converged,
+        stop_reason,
+        initial_terms,
+        terms,
+        objective_history: history,
+        gradient_norm_initial: g0_norm,
+        gradient_norm_final: dot(&g, &g).sqrt(),
+        seconds_total,
+        seconds_per_iteration: seconds_total / iterations.max(1) as f64,
+    };
+    Ok((a, b, report))
+}
+
+/// The paper's initialization from a functional map C (r × c, r ≤ k', c ≤ k), e.g. Ovsjanikov's:
+/// A = C zero-padded to k' × k, B = I_{k'×k}, so that A Bᵀ = C zero-padded to k' × k'.
+pub fn init_from_c(c: MatRef<f64>, k_prime: usize, k: usize) -> Result<(Mat<f64>, Mat<f64>)> {
+    check_k(k_prime, k)?;
+    if c.nrows() > k_prime || c.ncols() > k {
+        return Err(Error::invalid(
+            "C",
+            format!("C is {}×{} but must fit in k'×k = {k_prime}×{k}", c.nrows(), c.ncols()),
+        ));
+    }
+    let a = Mat::from_fn(k_prime, k, |i, j| if i < c.nrows() && j < c.ncols() { c[(i, j)] } else { 0.0 });
+    let b = Mat::from_fn(k_prime, k, |i, j| if i == j { 1.0 } else { 0.0 });
+    Ok((a, b))
+}
+
+/// The paper's initialization from the SVD of a given correspondence T = Ψ C Φᵀ, for T in the
+/// bases, i.e. from the SVD of its functional map C (r × c, r, c ≤ k', zero-padded to k' × k'):
+/// C = U Σ Vᵀ, A = U_k Σ_k^{1/2}, B = V_k Σ_k^{1/2}, truncated to the k largest singular values,
+/// so A Bᵀ is the best rank-k approximation of C.
+pub fn init_from_svd(c: MatRef<f64>, k_prime: usize, k: usize) -> Result<(Mat<f64>, Mat<f64>)> {
+    check_k(k_prime, k)?;
+    if c.nrows() > k_prime || c.ncols() > k_prime {
+        return Err(Error::invalid(
+            "C",
+            format!("C is {}×{} but must fit in k'×k' = {k_prime}×{k_prime}", c.nrows(), c.ncols()),
+        ));
+    }
+    let full = Mat::from_fn(k_prime, k_prime, |i, j| if i < c.nrows() && j < c.ncols() { c[(i, j)] } else { 0.0 });
+    let mut s = faer::diag::Diag::<f64>::zeros(k_prime);
+    let mut u = Mat::<f64>::zeros(k_prime, k_prime);
+    let mut v = Mat::<f64>::zeros(k_prime, k_prime);
+    let mut buf = MemBuffer::new(svd_scratch::<f64>(
+        k_prime,
+        k_prime,
+        ComputeSvdVectors::Thin,
+        ComputeSvdVectors::Thin,
+        Par::Seq,
+        Default::default(),
+    ));
+    svd(
+        full.as_ref(),
+        s.as_mut(),
+        Some(u.as_mut()),
+        Some(v.as_mut()),
+        Par::Seq,
+        MemStack::new(&mut buf),
+        Default::default(),
+    )
+    .map_err(|e| Error::numerical("completion", format!("SVD of the initial map failed: {e:?}")))?;
+    // Singular values come sorted in decreasing order.
+    let a = Mat::from_fn(k_prime, k, |i, j| u[(i, j)] * s[j].max(0.0).sqrt());
+    let b = Mat::from_fn(k_prime, k, |i, j| v[(i, j)] * s[j].max(0.0).sqrt());
+    Ok((a, b))
+}
+
+fn check_k(k_prime: usize, k: usize) -> Result<()> {
+    if k == 0 || k > k_prime {
+        return Err(Error::invalid("k", format!("k = {k} must be between 1 and k' = {k_prime}")));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::completion::objective::LowNorm;
+    use crate::completion::testutil::randn;
+    use crate::completion::{mul, Problem};
+
+    fn random_problem(n: usize, m: usize, kp: usize, q: usize, seed: u64) -> Problem {
+        let phi = randn(n, kp, seed) * 0.2;
+        let psi = randn(m, kp, seed + 1) * 0.2;
+        let lx: Vec<f64> = (0..kp).map(|i| i as f64 * 0.7).collect();
+        let ly: Vec<f64> = (0..kp).map(|i| i as f64 * 0.75 + 0.01).collect();
+        Problem::from_coefficients(phi, psi, lx, ly, randn(kp, q, seed + 2), randn(kp, q, seed + 3)).unwrap()
+    }
+
+    fn strong_params() -> CompletionParams {
+        CompletionParams {
+            mu1: 1e-2,
+            mu2: 1e-2,
+            mu3: 1e-2,
+            mu4: 1e-2,
+            xi: 1e-3,
+            mu_comm: 1e-3,
+            k_comm: 6,
+            low_norm: LowNorm::Euclidean,
+            block_rows: 16,
+        }
+    }
+
+    #[test]
+    fn objective_is_non_increasing_and_gradient_shrinks() {
+        let p = random_problem(50, 50, 8, 6, 77);
+        let (a0, b0) = (randn(8, 5, 1), randn(8, 5, 2));
+        let opts = OptimizeOptions { rel_tol: 1e-15, grad_tol: 1e-8, max_iterations: 3000, ..Default::default() };
+        let (a, b, r) = optimize(&p, &strong_params(), &opts, a0.as_ref(), b0.as_ref()).unwrap();
+        assert!(r.objective_history.windows(2).all(|w| w[1] <= w[0]), "{:?}", r.objective_history);
+        assert!(r.terms.total < 0.5 * r.initial_terms.total);
+        // Stationary point: the gradient has shrunk by orders of magnitude.
+        assert!(
+            r.gradient_norm_final < 1e-5 * r.gradient_norm_initial,
+            "‖g‖ {} from {} after {} iterations ({})",
+            r.gradient_norm_final,
+            r.gradient_norm_initial,
+            r.iterations,
+            r.stop_reason
+        );
+        eprintln!(
+            "stationary: {} iterations, {} evaluations, ‖g‖ {:.2e} → {:.2e}, f {:.4} → {:.4} ({})",
+            r.iterations,
+            r.evaluations,
+            r.gradient_norm_initial,
+            r.gradient_norm_final,
+            r.initial_terms.total,
+            r.terms.total,
+            r.stop_reason
+        );
+        let e = evaluate(&p, &strong_params(), a.as_ref(), b.as_ref());
+        assert_eq!(e.terms.total, r.terms.total);
+        assert!(serde_json::to_string(&r).unwrap().contains("seconds_per_iteration"));
+    }
+
+    #[test]
+    fn default_options_stop_on_relative_change() {
+        let p = random_problem(40, 45, 8, 6, 5);
+        let (a0, b0) = init_from_c(Mat::<f64>::identity(8, 5).as_ref(), 8, 5).unwrap();
+        let (_, _, r) =
+            optimize(&p, &CompletionParams::default(), &OptimizeOptions::default(), a0.as_ref(), b0.as_ref()).unwrap();
+        eprintln!("paper defaults: {} iterations, {}", r.iterations, r.stop_reason);
+        assert!(r.converged, "{}", r.stop_reason);
+        assert!(r.iterations < 300);
+        assert!(r.objective_history.windows(2).all(|w| w[1] <= w[0]));
+        let h = &r.objective_history;
+        let n = h.len();
+        assert!(h[n - 2] - h[n - 1] <= 1e-6 * h[n - 2]);
+    }
+
+    #[test]
+    fn with_zero_weights_solves_the_data_term() {
+        // k = q: some rank-k C satisfies C Â = B̂ exactly.
+        let p = random_problem(30, 30, 8, 6, 11);
+        let zero = CompletionParams { mu1: 0.0, mu2: 0.0, mu3: 0.0, mu4: 0.0, ..Default::default() };
+        let (a0, b0) = init_from_c(Mat::<f64>::identity(8, 6).as_ref(), 8, 6).unwrap();
+        let opts = OptimizeOptions { rel_tol: 1e-14, max_iterations: 2000, ..Default::default() };
+        let (a, b, r) = optimize(&p, &zero, &opts, a0.as_ref(), b0.as_ref()).unwrap();
+        let c = mul(a.as_ref(), b.transpose());
+        let res = (mul(c.as_ref(), p.f_hat.as_ref()) - &p.g_hat).norm_l2() / p.g_hat.norm_l2();
+        eprintln!("data term alone: relative residual {res:.1e} after {} iterations ({})", r.iterations, r.stop_reason);
+        assert!(res < 1e-5, "relative residual {res}, {} iterations, {}", r.iterations, r.stop_reason);
+    }
+
+    #[test]
+    fn initializations() {
+        let c = randn(6, 4, 3);
+        let (a, b) = init_from_c(c.as_ref(), 8, 5).unwrap();
+        let ab = mul(a.as_ref(), b.transpose());
+        for i in 0..8 {
+            for j in 0..8 {
+                let want = if i < 6 && j < 4 { c[(i, j)] } else { 0.0 };
+                assert_eq!(ab[(i, j)], want);
+            }
+        }
+        // SVD: exact when k = k', the best rank-k approximation otherwise.
+        let c = randn(8, 8, 4);
+        let (a, b) = init_from_svd(c.as_ref(), 8, 8).unwrap();
+        assert!((mul(a.as_ref(), b.transpose()) - &c).norm_l2() < 1e-12 * c.norm_l2());
+        let (a, b) = init_from_svd(c.as_ref(), 8, 3).unwrap();
+        let err = (mul(a.as_ref(), b.transpose()) - &c).norm_l2();
+        let sv = c.as_ref().singular_values().unwrap(); // decreasing
+        let tail = sv[3..].iter().map(|s| s * s).sum::<f64>().sqrt();
+        assert!((err - tail).abs() < 1e-10 * tail);
+        // Balanced factors: ‖A‖ = ‖B‖.
+        assert!((a.norm_l2() - b.norm_l2()).abs() < 1e-10 * a.norm_l2());
+        // Bad sizes.
+        assert!(init_from_c(c.as_ref(), 8, 9).is_err());
+        assert!(init_from_c(c.as_ref(), 8, 5).is_err());
+        assert!(init_from_svd(c.as_ref(), 6, 3).is_err());
+        let p = random_problem(20, 20, 8, 3, 1);
+        let bad = optimize(
+            &p,
+            &CompletionParams::default(),
+            &OptimizeOptions::default(),
+            randn(7, 3, 1).as_ref(),
+            randn(8, 3, 2).as_ref(),
+        );
+        assert!(bad.is_err());
+    }
+}

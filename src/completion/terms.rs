@@ -1,0 +1,435 @@
+//! The terms of problem (11), each *unweighted* with its gradient with respect to A and B
+//! (both k' × k). The weights μ are applied in [`super::objective`].
+//!
+//! Several terms depend on (A, B) only through C = A Bᵀ (k' × k'); for those, with
+//! G = ∂f/∂C, the chain rule gives ∇_A f = G B and ∇_B f = Gᵀ A.
+
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, MatRef, Par};
+use rayon::prelude::*;
+
+use super::{gemm_nn, gemm_tn, mul};
+
+/// The value of one term and its gradients with respect to A and B.
+#[derive(Clone, Debug)]
+pub struct TermValue {
+    /// The term's value.
+    pub value: f64,
+    /// ∂/∂A (k' × k).
+    pub grad_a: Mat<f64>,
+    /// ∂/∂B (k' × k).
+    pub grad_b: Mat<f64>,
+}
+
+/// Gradients of a function of C = A Bᵀ from G = ∂f/∂C: (G B, Gᵀ A).
+fn chain_c(value: f64, g: MatRef<f64>, a: MatRef<f64>, b: MatRef<f64>) -> TermValue {
+    TermValue { value, grad_a: mul(g, b), grad_b: mul(g.transpose(), a) }
+}
+
+/// Data term of (11): ‖A Bᵀ Â − B̂‖²_F with Â = Φ_k'ᵀ A_X F, B̂ = Ψ_k'ᵀ A_Y G (k' × q), the
+/// mass-weighted coefficients of the data (see the module documentation of
+/// [`crate::completion`] for this mass placement).
+///
+/// With R = A Bᵀ Â − B̂: ∇_A = 2 R Âᵀ B, ∇_B = 2 Â Rᵀ A.
+pub fn data(a: MatRef<f64>, b: MatRef<f64>, f_hat: MatRef<f64>, g_hat: MatRef<f64>) -> TermValue {
+    let btf = mul(b.transpose(), f_hat); // k × q
+    let mut r = mul(a, btf.as_ref()); // k' × q
+    r -= g_hat;
+    let value = r.squared_norm_l2();
+    // ∂/∂C of ‖C Â − B̂‖² is 2 R Âᵀ.
+    let g = mul(r.as_ref(), f_hat.transpose()) * 2.0;
+    chain_c(value, g.as_ref(), a, b)
+}
+
+/// Dirichlet energy on X of (11): tr(A Bᵀ Λ_X B Aᵀ) = Σ_ij C_ij² λ^X_j with C = A Bᵀ.
+///
+/// ∂/∂C = 2 C Λ_X, so ∇_A = 2 C Λ_X B and ∇_B = 2 Λ_X Cᵀ A.
+pub fn dirichlet_x(a: MatRef<f64>, b: MatRef<f64>, lambda_x: &[f64]) -> TermValue {
+    let c = mul(a, b.transpose());
+    let g = Mat::from_fn(c.nrows(), c.ncols(), |i, j| 2.0 * c[(i, j)] * lambda_x[j]);
+    let value = 0.5 * (0..c.ncols()).map(|j| (0..c.nrows()).map(|i| g[(i, j)] * c[(i, j)]).sum::<f64>()).sum::<f64>();
+    chain_c(value, g.as_ref(), a, b)
+}
+
+/// Dirichlet energy on Y of (11): tr(B Aᵀ Λ_Y A Bᵀ) = Σ_ij λ^Y_i C_ij² with C = A Bᵀ.
+///
+/// ∂/∂C = 2 Λ_Y C, so ∇_A = 2 Λ_Y C B and ∇_B = 2 Cᵀ Λ_Y A.
+pub fn dirichlet_y(a: MatRef<f64>, b: MatRef<f64>, lambda_y: &[f64]) -> TermValue {
+    let c = mul(a, b.transpose());
+    let g = Mat::from_fn(c.nrows(), c.ncols(), |i, j| 2.0 * lambda_y[i] * c[(i, j)]);
+    let value = 0.5 * (0..c.ncols()).map(|j| (0..c.nrows()).map(|i| g[(i, j)] * c[(i, j)]).sum::<f64>()).sum::<f64>();
+    chain_c(value, g.as_ref(), a, b)
+}
+
+/// Optional Laplacian-commutativity term (Ovsjanikov et al. 2012), not part of the paper's (11):
+/// ‖C_c Λ_X − Λ_Y C_c‖²_F = Σ_{i,j<k_c} (λ^X_j − λ^Y_i)² C_ij², on the leading k_c × k_c block
+/// C_c of C = A Bᵀ. Pure (11) does not reward near-isometric maps; this term does.
+///
+/// ∂/∂C_ij = 2 (λ^X_j − λ^Y_i)² C_ij inside the block, 0 outside.
+pub fn commutativity(a: MatRef<f64>, b: MatRef<f64>, lambda_x: &[f64], lambda_y: &[f64], k_c: usize) -> TermValue {
+    let c = mul(a, b.transpose());
+    let kc = k_c.min(c.nrows());
+    let mut value = 0.0;
+    let g = Mat::from_fn(c.nrows(), c.ncols(), |i, j| {
+        if i < kc && j < kc {
+            let w = (lambda_x[j] - lambda_y[i]).powi(2);
+            value += w * c[(i, j)] * c[(i, j)];
+            2.0 * w * c[(i, j)]
+        } else {
+            0.0
+        }
+    });
+    chain_c(value, g.as_ref(), a, b)
+}
+
+/// Low-norm term of (11) without its weight: ½ (‖Ψ_k' A‖²_F + ‖Φ_k' B‖²_F).
+///
+/// The bases are mass-orthonormal, not Euclidean-orthonormal, so with `grams = Some((Φᵀ Φ, Ψᵀ Ψ))`
+/// the Euclidean norms are computed exactly as ½ (tr(Aᵀ G_Y A) + tr(Bᵀ G_X B)), with gradients
+/// ∇_A = G_Y A and ∇_B = G_X B. With `None` the mass-weighted norms are used instead,
+/// ‖Ψ A‖²_{A_Y} = ‖A‖²_F, giving ½ (‖A‖² + ‖B‖²) with gradients A and B.
+pub fn low_norm(a: MatRef<f64>, b: MatRef<f64>, grams: Option<(MatRef<f64>, MatRef<f64>)>) -> TermValue {
+    let (grad_a, grad_b) = match grams {
+        Some((gram_x, gram_y)) => (mul(gram_y, a), mul(gram_x, b)),
+        None => (a.to_owned(), b.to_owned()),
+    };
+    let dot = |x: MatRef<f64>, y: &Mat<f64>| {
+        (0..x.ncols()).map(|j| (0..x.nrows()).map(|i| x[(i, j)] * y[(i, j)]).sum::<f64>()).sum::<f64>()
+    };
+    let value = 0.5 * (dot(a, &grad_a) + dot(b, &grad_b));
+    TermValue { value, grad_a, grad_b }
+}
+
+/// Maximum number of independent accumulators of the L1 gradient (each n × k). The row blocks
+/// of T are split into this many contiguous groups, independently of the thread count, so the
+/// result does not depend on the number of threads.
+const L1_GROUPS: usize = 4;
+
+/// Lanes of the elementwise loops: independent accumulators, so that the sums vectorize
+/// without reassociation (the result is the same whichever instruction set runs it).
+const LANES: usize = 8;
+
+/// In place t ← t / √(t² + ξ) over the columns of a block; returns Σ √(t² + ξ).
+#[inline(always)]
+fn soft_abs_in_place_generic(t: &mut Mat<f64>, xi: f64) -> f64 {
+    let mut acc = [0.0f64; LANES];
+    for j in 0..t.ncols() {
+        let col = t.col_as_slice_mut(j);
+        let mut chunks = col.chunks_exact_mut(LANES);
+        for c in &mut chunks {
+            for l in 0..LANES {
+                let r = (c[l] * c[l] + xi).sqrt();
+                acc[l] += r;
+                c[l] /= r;
+            }
+        }
+        for (l, x) in chunks.into_remainder().iter_mut().enumerate() {
+            let r = (*x * *x + xi).sqrt();
+            acc[l] += r;
+            *x /= r;
+        }
+    }
+    acc.iter().sum()
+}
+
+/// Σ √(t² + ξ) over a block.
+#[inline(always)]
+fn soft_abs_sum_generic(t: &Mat<f64>, xi: f64) -> f64 {
+    let mut acc = [0.0f64; LANES];
+    for j in 0..t.ncols() {
+        let col = t.col_as_slice(j);
+        let mut chunks = col.chunks_exact(LANES);
+        for c in &mut chunks {
+            for l in 0..LANES {
+                acc[l] += (c[l] * c[l] + xi).sqrt();
+            }
+        }
+        for (l, x) in chunks.remainder().iter().enumerate() {
+            acc[l] += (x * x + xi).sqrt();
+        }
+    }
+    acc.iter().sum()
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn soft_abs_in_place_avx2(t: &mut Mat<f64>, xi: f64) -> f64 {
+    soft_abs_in_place_generic(t, xi)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn soft_abs_sum_avx2(t: &Mat<f64>, xi: f64) -> f64 {
+    soft_abs_sum_generic(t, xi)
+}
+
+/// [`soft_abs_in_place_generic`], compiled for AVX2 when the CPU has it (the crate is built
+/// for the baseline x86-64, whose SSE2 vectors are half as wide).
+fn soft_abs_in_place(t: &mut Mat<f64>, xi: f64) -> f64 {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2, checked just above.
+        return unsafe { soft_abs_in_place_avx2(t, xi) };
+    }
+    soft_abs_in_place_generic(t, xi)
+}
+
+/// [`soft_abs_sum_generic`] with the same dispatch.
+fn soft_abs_sum(t: &Mat<f64>, xi: f64) -> f64 {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2, checked just above.
+        return unsafe { soft_abs_sum_avx2(t, xi) };
+    }
+    soft_abs_sum_generic(t, xi)
+}
+
+/// Contiguous ranges of row blocks, one per group.
+fn block_groups(m: usize, block: usize) -> (usize, Vec<std::ops::Range<usize>>) {
+    let nblocks = m.div_ceil(block);
+    let groups = L1_GROUPS.min(nblocks).max(1);
+    let ranges = (0..groups).map(|g| g * nblocks / groups..(g + 1) * nblocks / groups).collect();
+    (nblocks, ranges)
+}
+
+/// L1 term of (11) without its weight: Σ_ij √(t_ij² + ξ) over T = Ψ_k' A Bᵀ Φ_k'ᵀ (m × n), the
+/// smooth approximation |t| ≈ √(t² + ξ) of the paper.
+///
+/// With U = Ψ A (m × k), V = Φ B (n × k), T = U Vᵀ and S = ∂/∂T = T ⊘ √(T² + ξ):
+/// ∇_A = Ψᵀ (S V), ∇_B = Φᵀ (Sᵀ U).
+///
+/// T is never stored: row blocks of `block_rows` rows, T_r = U_r Vᵀ (block × n), are formed,
+/// turned into S_r in place, and accumulated as ∇_A += Ψ_rᵀ (S_r V) and Sᵀ U += S_rᵀ U_r; the
+/// blocks run in parallel in a fixed number of groups. Memory O((m + n)·k' + block·n).
+/// Cost 6·m·n·k flops for the three block products.
+pub fn l1(a: MatRef<f64>, b: MatRef<f64>, phi: MatRef<f64>, psi: MatRef<f64>, xi: f64, block_rows: usize) -> TermValue {
+    let u = gemm_nn(psi, a); // m × k
+    let v = gemm_nn(phi, b); // n × k
+    let (m, n, k, kp) = (u.nrows(), v.nrows(), u.ncols(), a.nrows());
+    let block = block_rows.max(1);
+    let (_, ranges) = block_groups(m, block);
+    let partials: Vec<(f64, Mat<f64>, Mat<f64>)> = ranges
+        .par_iter()
+        .map(|range| {
+            let mut value = 0.0;
+            let mut ga = Mat::<f64>::zeros(kp, k);
+            let mut sv = Mat::<f64>::zeros(n, k); // Σ S_rᵀ U_r
+            let mut t = Mat::<f64>::zeros(0, 0);
+            let mut su = Mat::<f64>::zeros(0, 0);
+            for bi in range.clone() {
+                let r0 = bi * block;
+                let len = block.min(m - r0);
+                if t.nrows() != len {
+                    t = Mat::zeros(len, n);
+                    su = Mat::zeros(len, k);
+                }
+                let ur = u.subrows(r0, len);
+                matmul(t.as_mut(), Accum::Replace, ur, v.transpose(), 1.0, Par::Seq);
+                value += soft_abs_in_place(&mut t, xi);
+                matmul(su.as_mut(), Accum::Replace, t.as_ref(), v.as_ref(), 1.0, Par::Seq);
+                matmul(ga.as_mut(), Accum::Add, psi.subrows(r0, len).transpose(), su.as_ref(), 1.0, Par::Seq);
+                matmul(sv.as_mut(), Accum::Add, t.transpose(), ur, 1.0, Par::Seq);
+            }
+            (value, ga, sv)
+        })
+        .collect();
+    let mut value = 0.0;
+    let mut grad_a = Mat::<f64>::zeros(kp, k);
+    let mut st_u = Mat::<f64>::zeros(n, k);
+    for (v, ga, sv) in &partials {
+        value += v;
+        grad_a += ga;
+        st_u += sv;
+    }
+    drop(partials);
+    let grad_b = gemm_tn(phi, st_u.as_ref());
+    TermValue { value, grad_a, grad_b }
+}
+
+/// The value of [`l1`] alone (2·m·n·k flops), for line searches and reports.
+pub fn l1_value(a: MatRef<f64>, b: MatRef<f64>, phi: MatRef<f64>, psi: MatRef<f64>, xi: f64, block_rows: usize) -> f64 {
+    let u = gemm_nn(psi, a);
+    let v = gemm_nn(phi, b);
+    let (m, n) = (u.nrows(), v.nrows());
+    let block = block_rows.max(1);
+    let (_, ranges) = block_groups(m, block);
+    let partials: Vec<f64> = ranges
+        .par_iter()
+        .map(|range| {
+            let mut value = 0.0;
+            let mut t = Mat::<f64>::zeros(0, 0);
+            for bi in range.clone() {
+                let r0 = bi * block;
+                let len = block.min(m - r0);
+                if t.nrows() != len {
+                    t = Mat::zeros(len, n);
+                }
+                matmul(t.as_mut(), Accum::Replace, u.subrows(r0, len), v.transpose(), 1.0, Par::Seq);
+                value += soft_abs_sum(&t, xi);
+            }
+            value
+        })
+        .collect();
+    partials.iter().sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::completion::testutil::{dot, randn};
+
+    const N: usize = 50;
+    const M: usize = 45;
+    const KP: usize = 8;
+    const K: usize = 5;
+    const Q: usize = 6;
+
+    /// Central-difference check of a term along random directions: relative error of the
+    /// directional derivative ⟨∇_A, D_A⟩ + ⟨∇_B, D_B⟩.
+    fn fd_check(f: &dyn Fn(MatRef<f64>, MatRef<f64>) -> TermValue, seed: u64) {
+        let a = randn(KP, K, seed);
+        let b = randn(KP, K, seed + 1);
+        let t = f(a.as_ref(), b.as_ref());
+        assert_eq!((t.grad_a.nrows(), t.grad_a.ncols()), (KP, K));
+        assert_eq!((t.grad_b.nrows(), t.grad_b.ncols()), (KP, K));
+        let mut worst = 0.0f64;
+        for trial in 0..3 {
+            let da = randn(KP, K, seed + 10 + trial);
+            let db = randn(KP, K, seed + 20 + trial);
+            // Per-block checks too: A only, B only, both.
+            for (wa, wb) in [(1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+                let h = 1e-5;
+                let plus = f((&a + &da * (h * wa)).as_ref(), (&b + &db * (h * wb)).as_ref()).value;
+                let minus = f((&a - &da * (h * wa)).as_ref(), (&b - &db * (h * wb)).as_ref()).value;
+                let fd = (plus - minus) / (2.0 * h);
+                let an = wa * dot(&t.grad_a, &da) + wb * dot(&t.grad_b, &db);
+                let rel = (fd - an).abs() / an.abs().max(1e-12);
+                assert!(rel < 1e-5, "trial {trial} ({wa},{wb}): fd {fd} vs analytic {an}, rel {rel:e}");
+                worst = worst.max(rel);
+            }
+        }
+        eprintln!("finite differences (seed {seed}): worst relative error {worst:.1e}");
+    }
+
+    fn eigen(k: usize, seed: u64) -> Vec<f64> {
+        let r = randn(k, 1, seed);
+        let mut l: Vec<f64> = (0..k).map(|i| i as f64 * 1.5 + 0.3 * r[(i, 0)].abs()).collect();
+        l[0] = 0.0;
+        l
+    }
+
+    #[test]
+    fn data_term_gradient() {
+        let f_hat = randn(KP, Q, 100);
+        let g_hat = randn(KP, Q, 101);
+        fd_check(&|a, b| data(a, b, f_hat.as_ref(), g_hat.as_ref()), 1);
+        // Value: ‖A Bᵀ Â − B̂‖² by a direct formula.
+        let (a, b) = (randn(KP, K, 7), randn(KP, K, 8));
+        let c = mul(a.as_ref(), b.transpose());
+        let r = mul(c.as_ref(), f_hat.as_ref()) - &g_hat;
+        let v = data(a.as_ref(), b.as_ref(), f_hat.as_ref(), g_hat.as_ref()).value;
+        assert!((v - r.squared_norm_l2()).abs() < 1e-10 * v);
+    }
+
+    #[test]
+    fn dirichlet_gradients_and_values() {
+        let lx = eigen(KP, 200);
+        let ly = eigen(KP, 201);
+        fd_check(&|a, b| dirichlet_x(a, b, &lx), 2);
+        fd_check(&|a, b| dirichlet_y(a, b, &ly), 3);
+        // Values against the trace formulas of (11).
+        let (a, b) = (randn(KP, K, 9), randn(KP, K, 10));
+        let lam_x = Mat::from_fn(KP, KP, |i, j| if i == j { lx[i] } else { 0.0 });
+        let lam_y = Mat::from_fn(KP, KP, |i, j| if i == j { ly[i] } else { 0.0 });
+        let c = mul(a.as_ref(), b.transpose());
+        let tx = mul(mul(c.as_ref(), lam_x.as_ref()).as_ref(), c.transpose());
+        let ty = mul(mul(c.transpose(), lam_y.as_ref()).as_ref(), c.as_ref());
+        let trace = |m: &Mat<f64>| (0..KP).map(|i| m[(i, i)]).sum::<f64>();
+        let vx = dirichlet_x(a.as_ref(), b.as_ref(), &lx).value;
+        let vy = dirichlet_y(a.as_ref(), b.as_ref(), &ly).value;
+        assert!((vx - trace(&tx)).abs() < 1e-10 * vx.abs());
+        assert!((vy - trace(&ty)).abs() < 1e-10 * vy.abs());
+    }
+
+    #[test]
+    fn commutativity_gradient_and_value() {
+        let lx = eigen(KP, 300);
+        let ly = eigen(KP, 301);
+        fd_check(&|a, b| commutativity(a, b, &lx, &ly, 6), 4);
+        fd_check(&|a, b| commutativity(a, b, &lx, &ly, KP), 5);
+        let (a, b) = (randn(KP, K, 11), randn(KP, K, 12));
+        let c = mul(a.as_ref(), b.transpose());
+        let kc = 6;
+        let direct: f64 = (0..kc)
+            .flat_map(|i| (0..kc).map(move |j| (i, j)))
+            .map(|(i, j)| (c[(i, j)] * lx[j] - ly[i] * c[(i, j)]).powi(2))
+            .sum();
+        let v = commutativity(a.as_ref(), b.as_ref(), &lx, &ly, kc).value;
+        assert!((v - direct).abs() < 1e-10 * direct);
+    }
+
+    #[test]
+    fn low_norm_gradient_and_value() {
+        let phi = randn(N, KP, 400);
+        let psi = randn(M, KP, 401);
+        let gx = gemm_tn(phi.as_ref(), phi.as_ref());
+        let gy = gemm_tn(psi.as_ref(), psi.as_ref());
+        fd_check(&|a, b| low_norm(a, b, Some((gx.as_ref(), gy.as_ref()))), 6);
+        fd_check(&|a, b| low_norm(a, b, None), 7);
+        let (a, b) = (randn(KP, K, 13), randn(KP, K, 14));
+        let direct =
+            0.5 * (mul(psi.as_ref(), a.as_ref()).squared_norm_l2() + mul(phi.as_ref(), b.as_ref()).squared_norm_l2());
+        let v = low_norm(a.as_ref(), b.as_ref(), Some((gx.as_ref(), gy.as_ref()))).value;
+        assert!((v - direct).abs() < 1e-10 * direct);
+        let v = low_norm(a.as_ref(), b.as_ref(), None).value;
+        assert!((v - 0.5 * (a.squared_norm_l2() + b.squared_norm_l2())).abs() < 1e-12 * v);
+    }
+
+    /// Dense reference: T formed whole.
+    fn l1_dense(a: MatRef<f64>, b: MatRef<f64>, phi: MatRef<f64>, psi: MatRef<f64>, xi: f64) -> f64 {
+        let t = mul(mul(psi, a).as_ref(), mul(phi, b).transpose());
+        (0..t.ncols()).map(|j| (0..t.nrows()).map(|i| (t[(i, j)].powi(2) + xi).sqrt()).sum::<f64>()).sum()
+    }
+
+    #[test]
+    fn elementwise_kernels_agree_with_the_generic_code() {
+        let t0 = randn(13, 7, 600) * 0.05;
+        let (mut t1, mut t2) = (t0.clone(), t0.clone());
+        let v1 = soft_abs_in_place(&mut t1, 1e-3);
+        let v2 = soft_abs_in_place_generic(&mut t2, 1e-3);
+        assert_eq!(v1, v2);
+        assert_eq!(t1, t2);
+        assert_eq!(soft_abs_sum(&t0, 1e-3), v1);
+        assert_eq!(soft_abs_sum_generic(&t0, 1e-3), v1);
+        let direct: f64 = (0..7).map(|j| (0..13).map(|i| (t0[(i, j)].powi(2) + 1e-3).sqrt()).sum::<f64>()).sum();
+        assert!((v1 - direct).abs() < 1e-13 * direct);
+        assert!((t1[(3, 2)] - t0[(3, 2)] / (t0[(3, 2)].powi(2) + 1e-3).sqrt()).abs() < 1e-15);
+    }
+
+    #[test]
+    fn l1_gradient_value_and_blocking() {
+        // Scaled so that entries of T are of order √ξ and larger: both regimes of √(t² + ξ).
+        let phi = randn(N, KP, 500) * 0.1;
+        let psi = randn(M, KP, 501) * 0.1;
+        for block in [7, 16, 512] {
+            fd_check(&|a, b| l1(a, b, phi.as_ref(), psi.as_ref(), 1e-3, block), 8);
+        }
+        let (a, b) = (randn(KP, K, 15), randn(KP, K, 16));
+        let reference = l1_dense(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3);
+        let full = l1(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, 7);
+        let single = l1(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, 1000);
+        for v in [full.value, single.value, l1_value(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, 7)] {
+            assert!((v - reference).abs() < 1e-12 * reference, "{v} vs {reference}");
+        }
+        // Block size changes only the summation order.
+        let d = (&full.grad_a - &single.grad_a).norm_l2() + (&full.grad_b - &single.grad_b).norm_l2();
+        assert!(d < 1e-12 * (full.grad_a.norm_l2() + full.grad_b.norm_l2()));
+        // Explicit gradient formulas ∇_A = Ψᵀ S Φ B, ∇_B = Φᵀ Sᵀ Ψ A on the dense T.
+        let t = mul(mul(psi.as_ref(), a.as_ref()).as_ref(), mul(phi.as_ref(), b.as_ref()).transpose());
+        let s = Mat::from_fn(M, N, |i, j| t[(i, j)] / (t[(i, j)].powi(2) + 1e-3).sqrt());
+        let ga = mul(mul(psi.transpose(), s.as_ref()).as_ref(), mul(phi.as_ref(), b.as_ref()).as_ref());
+        let gb = mul(mul(phi.transpose(), s.transpose()).as_ref(), mul(psi.as_ref(), a.as_ref()).as_ref());
+        assert!((&ga - &full.grad_a).norm_l2() < 1e-10 * ga.norm_l2());
+        assert!((&gb - &full.grad_b).norm_l2() < 1e-10 * gb.norm_l2());
+    }
+}
