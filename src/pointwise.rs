@@ -118,7 +118,7 @@ impl Default for IcpOptions {
 
 /// The ICP-like refinement of Ovsjanikov et al. 2012 (paper §2): alternate the point-wise map
 /// (nearest rows of Ψ_k C for the rows of Φ_k) and the orthonormal C minimizing
-/// ‖Φ_k − Ψ_k[map] C‖ (orthogonal Procrustes: C = U Vᵀ from the SVD of Ψ_k[map]ᵀ Φ_k), until
+/// ‖Φ_k − Ψ_k(map) C‖ (orthogonal Procrustes: C = U Vᵀ from the SVD of Ψ_k(map)ᵀ Φ_k), until
 /// the map stops changing. Returns the refined C (k × k) and `map_xy` (length n).
 pub fn icp(phi: MatRef<f64>, psi: MatRef<f64>, c0: MatRef<f64>, opts: &IcpOptions) -> Result<(Mat<f64>, Vec<usize>)> {
     let k = check_fmap(phi, psi, c0)?;
@@ -152,7 +152,7 @@ pub struct ZoomOutOptions {
 
 /// ZoomOut (Melzi et al. 2019): spectral upsampling of a k × k functional map (X → Y) to
 /// K × K in steps: at each size k, the point-wise map Y → X of the current C gives the next
-/// C = Ψ_{k+s}ᵀ A_Y Φ_{k+s}[map_yx] ((k+s) × (k+s)). `mass_y` is A_Y (length m). Returns the
+/// C = Ψ_{k+s}ᵀ A_Y Φ_{k+s}(map_yx) ((k+s) × (k+s)). `mass_y` is A_Y (length m). Returns the
 /// final C (K × K) and `map_xy` (length n) from it.
 pub fn zoomout(
     phi: MatRef<f64>,

@@ -208,6 +208,9 @@ fn demo_runs_on_bundled_data() {
     assert!(s.contains("Persistence segments (scarce data): 5 on X, 5 on Y, 5 matched"), "{s}");
     let f = funcorr::io::npy::read_npy_matrix(&d.join("F.npy")).unwrap();
     assert_eq!((f.rows, f.cols), (4999, 5));
+    assert!(s.contains("Matching X → Y") && s.contains("geodesic error"), "{s}");
+    assert_eq!(std::fs::read_to_string(d.join("map.txt")).unwrap().lines().count(), 4999);
+    assert!(d.join("X.ply").exists() && d.join("Y.ply").exists());
     std::fs::remove_dir_all(&d).unwrap();
 }
 
