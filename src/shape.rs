@@ -96,6 +96,36 @@ impl UnionFind {
     }
 }
 
+/// Compressed adjacency lists of an undirected graph on n vertices: the neighbours of i are
+/// `adj[start[i]..start[i + 1]]`; self-loops are dropped, duplicates kept.
+/// Errors on an index ≥ n.
+pub(crate) fn adjacency(n: usize, edges: &[[u32; 2]]) -> Result<(Vec<usize>, Vec<u32>)> {
+    let mut start = vec![0usize; n + 1];
+    for (e, &[a, b]) in edges.iter().enumerate() {
+        if a as usize >= n || b as usize >= n {
+            return Err(Error::invalid("edges", format!("edge {e} = [{a}, {b}] is out of range (n = {n})")));
+        }
+        if a != b {
+            start[a as usize + 1] += 1;
+            start[b as usize + 1] += 1;
+        }
+    }
+    for i in 0..n {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut adj = vec![0u32; start[n]];
+    for &[a, b] in edges {
+        if a != b {
+            adj[fill[a as usize]] = b;
+            fill[a as usize] += 1;
+            adj[fill[b as usize]] = a;
+            fill[b as usize] += 1;
+        }
+    }
+    Ok((start, adj))
+}
+
 impl TriMesh {
     /// Builds a mesh from vertices (n, each [x, y, z]) and triangles (0-based indices).
     ///

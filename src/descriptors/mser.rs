@@ -56,6 +56,7 @@ use super::matching::{self, RegionMatch};
 use super::signatures;
 use super::Descriptors;
 use crate::error::{Error, Result};
+use crate::shape::adjacency;
 use crate::shape::TriMesh;
 use crate::spectral::Basis;
 
@@ -258,27 +259,7 @@ impl ComponentTree {
         if levels.len() != n {
             return Err(Error::invalid("levels", format!("{} levels for {n} vertices", levels.len())));
         }
-        // Adjacency (CSR).
-        let mut deg = vec![0u32; n + 1];
-        for &[a, b] in edges {
-            if a != b {
-                deg[a as usize + 1] += 1;
-                deg[b as usize + 1] += 1;
-            }
-        }
-        for i in 0..n {
-            deg[i + 1] += deg[i];
-        }
-        let mut fill = deg.clone();
-        let mut adj = vec![0u32; deg[n] as usize];
-        for &[a, b] in edges {
-            if a != b {
-                adj[fill[a as usize] as usize] = b;
-                fill[a as usize] += 1;
-                adj[fill[b as usize] as usize] = a;
-                fill[b as usize] += 1;
-            }
-        }
+        let (deg, adj) = adjacency(n, edges)?;
 
         let mut sweep: Vec<u32> = (0..n as u32).collect();
         sweep.sort_unstable_by_key(|&v| (levels[v as usize], v));
@@ -296,7 +277,7 @@ impl ComponentTree {
             root_node[v as usize] = id;
             vertex_node[v as usize] = id;
             added[v as usize] = true;
-            for &u in &adj[deg[v as usize] as usize..deg[v as usize + 1] as usize] {
+            for &u in &adj[deg[v as usize]..deg[v as usize + 1]] {
                 if !added[u as usize] {
                     continue;
                 }

@@ -59,7 +59,7 @@ use super::signatures::{hks, hks_times, wks};
 use super::{segments, Descriptors};
 use crate::error::{Error, Result};
 use crate::laplacian::Laplacian;
-use crate::shape::{PointSet, TriMesh};
+use crate::shape::{adjacency, PointSet, TriMesh};
 use crate::spectral::Basis;
 
 /// Time of the default function in units of 1/λ₁: t = `DEFAULT_HKS_TIME` / λ₁.
@@ -117,35 +117,6 @@ pub fn graph_edges(lap: &Laplacian) -> Vec<[u32; 2]> {
     edges.sort_unstable();
     edges.dedup();
     edges
-}
-
-/// Compressed adjacency lists of an undirected graph; self-loops are dropped.
-/// Errors on an index ≥ n.
-fn adjacency(n: usize, edges: &[[u32; 2]]) -> Result<(Vec<usize>, Vec<u32>)> {
-    let mut start = vec![0usize; n + 1];
-    for (e, &[a, b]) in edges.iter().enumerate() {
-        if a as usize >= n || b as usize >= n {
-            return Err(Error::invalid("edges", format!("edge {e} = [{a}, {b}] is out of range (n = {n})")));
-        }
-        if a != b {
-            start[a as usize + 1] += 1;
-            start[b as usize + 1] += 1;
-        }
-    }
-    for i in 0..n {
-        start[i + 1] += start[i];
-    }
-    let mut fill = start.clone();
-    let mut adj = vec![0u32; start[n]];
-    for &[a, b] in edges {
-        if a != b {
-            adj[fill[a as usize]] = b;
-            fill[a as usize] += 1;
-            adj[fill[b as usize]] = a;
-            fill[b as usize] += 1;
-        }
-    }
-    Ok((start, adj))
 }
 
 /// Root of `i` in a union-find forest stored as parent pointers (path halving).
