@@ -481,3 +481,58 @@ fn match_and_eval_on_the_bundled_pair() {
     );
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn match_data_specs_and_refinements() {
+    let d = tmp("specs");
+    let (x, y) = (data("tr_reg_000.off"), data("tr_reg_001.off"));
+    let (xs, ys) = (x.to_str().unwrap(), y.to_str().unwrap());
+    let cache = d.join("cache");
+    let (lx, ly) = (data("tr_reg_000_tr_reg_001.tr_reg_000.seg.sym"), data("tr_reg_000_tr_reg_001.tr_reg_001.seg.sym"));
+    let segs = format!("segments:{},{}", lx.display(), ly.display());
+    let pairs = d.join("pairs.txt");
+    std::fs::write(&pairs, "0 0\n100 120\n2000 2100\n").unwrap();
+    let landmarks = format!("landmarks:{}", pairs.display());
+    for (spec, refine, q) in [(segs.as_str(), "icp", 11), ("persistence", "none", 5), (landmarks.as_str(), "none", 3)] {
+        let out = d.join("out");
+        let r = run(&[
+            "match",
+            xs,
+            ys,
+            "--data",
+            spec,
+            "--refine",
+            refine,
+            "-k",
+            "10",
+            "--kprime",
+            "30",
+            "-o",
+            out.to_str().unwrap(),
+            "--cache-dir",
+            cache.to_str().unwrap(),
+        ]);
+        assert!(r.status.success(), "{spec}: {}", text(&r.stderr));
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+        assert_eq!(report["q"], q, "{spec}");
+        assert_eq!(report["final_k"], 10, "{spec}");
+        assert_eq!(std::fs::read_to_string(out.join("map.txt")).unwrap().lines().count(), 4999);
+    }
+    let bad = format!("segments:{}", lx.display());
+    assert_fails(
+        &run(&[
+            "match",
+            xs,
+            ys,
+            "--data",
+            &bad,
+            "-o",
+            d.join("o").to_str().unwrap(),
+            "--cache-dir",
+            cache.to_str().unwrap(),
+        ]),
+        "comma",
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
