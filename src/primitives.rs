@@ -70,6 +70,22 @@ pub fn icosphere(subdivisions: u32) -> TriMesh {
     TriMesh::new(v, f).expect("icosphere is valid")
 }
 
+/// The unit icosphere pushed out by a smooth radial bump with no symmetry, then stretched
+/// (1.3, 1, 0.9) along the axes: a closed surface whose Laplacian eigenvalues are simple, so
+/// eigenvectors are defined up to sign only — the shape the invariance tests use.
+pub fn bumpy_sphere(subdivisions: u32) -> TriMesh {
+    let s = icosphere(subdivisions);
+    let v = s
+        .vertices()
+        .iter()
+        .map(|p| {
+            let r = 1.0 + 0.15 * (3.0 * p[0] + 1.0).sin() * (2.0 * p[1] + 0.3).cos() + 0.1 * p[2].powi(3) + 0.05 * p[0];
+            [1.3 * r * p[0], r * p[1], 0.9 * r * p[2]]
+        })
+        .collect();
+    TriMesh::new(v, s.faces().to_vec()).expect("bumpy sphere is valid")
+}
+
 /// Flat rectangle [0, a] × [0, b] in the plane z = 0, triangulated on a regular grid of
 /// nx × ny cells ((nx+1)(ny+1) vertices), each cell split along alternating diagonals.
 pub fn rectangle(a: f64, b: f64, nx: u32, ny: u32) -> TriMesh {

@@ -356,6 +356,30 @@ impl TriMesh {
             / e.len() as f64
     }
 
+    /// The same mesh with its vertices renumbered: new vertex i is old vertex `perm[i]`
+    /// (faces follow). Errors unless `perm` is a permutation of 0..n.
+    pub fn permuted(&self, perm: &[usize]) -> Result<TriMesh> {
+        let n = self.vertices.len();
+        let mut inv = vec![u32::MAX; n];
+        for (new, &old) in perm.iter().enumerate() {
+            if old >= n || inv[old] != u32::MAX {
+                return Err(Error::invalid("permutation", format!("entry {new} = {old} repeats or is ≥ n = {n}")));
+            }
+            inv[old] = new as u32;
+        }
+        if perm.len() != n {
+            return Err(Error::invalid("permutation", format!("{} entries for {n} vertices", perm.len())));
+        }
+        let vertices = perm.iter().map(|&old| self.vertices[old]).collect();
+        let faces = self.faces.iter().map(|f| f.map(|v| inv[v as usize])).collect();
+        TriMesh::new(vertices, faces)
+    }
+
+    /// The same connectivity with every vertex moved by `f` (e.g. a rigid motion).
+    pub fn map_vertices(&self, f: impl Fn([f64; 3]) -> [f64; 3]) -> Result<TriMesh> {
+        TriMesh::new(self.vertices.iter().map(|&p| f(p)).collect(), self.faces.clone())
+    }
+
     /// The vertices as a point cloud (faces dropped), as in the paper's mesh-to-point-cloud
     /// experiment.
     pub fn to_point_set(&self) -> PointSet {
@@ -501,6 +525,18 @@ pub(crate) mod tests {
         assert_eq!(two.degenerate_faces(), vec![4]);
         assert_eq!(two.unreferenced_vertices(), vec![8]);
         assert_eq!(two.boundary_loops().len(), 2);
+    }
+
+    #[test]
+    fn permuted_copies() {
+        let m = square();
+        let p = m.permuted(&[2, 0, 3, 1]).unwrap();
+        assert_eq!(p.vertices()[0], m.vertices()[2]);
+        assert_eq!(p.face_areas(), m.face_areas());
+        assert_eq!(p.faces()[0], [1, 3, 0]); // old face [0, 1, 2]
+        assert!(m.permuted(&[0, 0, 1, 2]).is_err());
+        assert!(m.permuted(&[0, 1, 2]).is_err());
+        assert!(m.permuted(&[0, 1, 2, 4]).is_err());
     }
 
     #[test]

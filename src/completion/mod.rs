@@ -262,16 +262,9 @@ mod tests {
     use super::*;
     use crate::descriptors::signatures::{hks, hks_times, wks};
     use crate::laplacian::cotangent;
-    use crate::primitives::icosphere;
+    use crate::primitives::bumpy_sphere;
     use crate::shape::TriMesh;
     use crate::spectral::{eigen_basis, SpectralOptions};
-
-    /// A smooth non-symmetric radial bump of the unit sphere: simple eigenvalues.
-    fn bumpy(p: [f64; 3]) -> [f64; 3] {
-        let r =
-            1.0 + 0.15 * (3.0 * p[0] + 1.0).sin() * (2.0 * p[1] + 0.3).cos() + 0.1 * p[2] * p[2] * p[2] + 0.05 * p[0];
-        [1.3 * r * p[0], r * p[1], 0.9 * r * p[2]]
-    }
 
     /// For every row of `query` the index of the nearest row of `reference` (brute force).
     fn nearest(reference: MatRef<f64>, query: MatRef<f64>) -> Vec<usize> {
@@ -294,20 +287,15 @@ mod tests {
     /// 6–52 of 642 vertices correct); the weights do not mean the same on every shape.
     #[test]
     fn recovers_a_vertex_permutation() {
-        let sphere = icosphere(3);
-        let n = sphere.n_vertices();
+        let x_mesh = bumpy_sphere(3);
+        let n = x_mesh.n_vertices();
         // Y = X with vertices renumbered: Y vertex `new` is X vertex `perm[new]`.
         let perm: Vec<usize> = (0..n).map(|i| (i * 7919) % n).collect();
+        let y_mesh = x_mesh.permuted(&perm).unwrap();
         let mut inv = vec![0u32; n];
         for (new, &old) in perm.iter().enumerate() {
             inv[old] = new as u32;
         }
-        let x_mesh =
-            TriMesh::new(sphere.vertices().iter().map(|&p| bumpy(p)).collect(), sphere.faces().to_vec()).unwrap();
-        let y_verts = perm.iter().map(|&old| bumpy(sphere.vertices()[old])).collect();
-        let y_faces =
-            sphere.faces().iter().map(|f| [inv[f[0] as usize], inv[f[1] as usize], inv[f[2] as usize]]).collect();
-        let y_mesh = TriMesh::new(y_verts, y_faces).unwrap();
         let basis = |m: &TriMesh| eigen_basis(&cotangent(m).unwrap(), &SpectralOptions::new(60), None).unwrap().0;
         let (bx, by) = (basis(&x_mesh), basis(&y_mesh));
         // q = 60 data functions: 30 WKS + 30 HKS on each shape, columns of unit mass-norm.

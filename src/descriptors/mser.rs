@@ -926,13 +926,11 @@ mod tests {
         let mesh = icosphere(4);
         let n = mesh.n_vertices();
         let perm: Vec<usize> = (0..n).map(|i| (i * 7919) % n).collect(); // new i ← old perm[i]
+        let moved = mesh.permuted(&perm).unwrap();
         let mut inv = vec![0u32; n];
         for (new, &old) in perm.iter().enumerate() {
             inv[old] = new as u32;
         }
-        let verts = perm.iter().map(|&old| mesh.vertices()[old]).collect();
-        let faces = mesh.faces().iter().map(|f| [inv[f[0] as usize], inv[f[1] as usize], inv[f[2] as usize]]).collect();
-        let moved = TriMesh::new(verts, faces).unwrap();
         let w: Vec<f64> = mesh.vertices().iter().map(sphere_weighting).collect();
         let wp: Vec<f64> = perm.iter().map(|&old| w[old]).collect();
         let opts = MserOptions::default();

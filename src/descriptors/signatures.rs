@@ -155,25 +155,10 @@ pub fn hkm(basis: &Basis, seeds: &[usize], times: &[f64], normalize: bool) -> Re
 mod tests {
     use super::*;
     use crate::laplacian::cotangent;
-    use crate::primitives::icosphere;
+    use crate::primitives::bumpy_sphere;
     use crate::shape::TriMesh;
     use crate::spectral::{eigen_basis, SpectralOptions};
     use faer::Side;
-
-    /// A sphere with smooth bumps and no symmetry (simple eigenvalues).
-    fn bumpy(subdiv: u32) -> TriMesh {
-        let s = icosphere(subdiv);
-        let v = s
-            .vertices()
-            .iter()
-            .map(|p| {
-                let r =
-                    1.0 + 0.15 * (3.0 * p[0] + 1.0).sin() * (2.0 * p[1] + 0.3).cos() + 0.1 * p[2].powi(3) + 0.05 * p[0];
-                [1.3 * r * p[0], r * p[1], 0.9 * r * p[2]]
-            })
-            .collect();
-        TriMesh::new(v, s.faces().to_vec()).unwrap()
-    }
 
     fn basis_of(mesh: &TriMesh, k: usize, lanczos: bool) -> Basis {
         let mut o = SpectralOptions::new(k);
@@ -185,7 +170,7 @@ mod tests {
 
     #[test]
     fn match_an_independent_dense_computation() {
-        let mesh = bumpy(3); // 642 vertices
+        let mesh = bumpy_sphere(3); // 642 vertices
         let k = 40;
         let b = basis_of(&mesh, k, true);
         // Reference: dense eigendecomposition of A^{-1/2} W A^{-1/2}, formulas summed by hand.
@@ -235,23 +220,17 @@ mod tests {
 
     #[test]
     fn invariant_to_permutation_rigid_motion_and_scale() {
-        let mesh = bumpy(3);
+        let mesh = bumpy_sphere(3);
         let n = mesh.n_vertices();
         let perm: Vec<usize> = (0..n).map(|i| (i * 7919) % n).collect(); // new i ← old perm[i]
-        let mut inv = vec![0u32; n];
-        for (new, &old) in perm.iter().enumerate() {
-            inv[old] = new as u32;
-        }
         let (c, s, scale) = (0.4f64.cos(), 0.4f64.sin(), 3.7);
-        let verts: Vec<[f64; 3]> = perm
-            .iter()
-            .map(|&old| {
-                let p = mesh.vertices()[old];
+        let moved = mesh
+            .permuted(&perm)
+            .unwrap()
+            .map_vertices(|p| {
                 [scale * (c * p[0] + s * p[2]) + 10.0, scale * p[1] - 4.0, scale * (-s * p[0] + c * p[2])]
             })
-            .collect();
-        let faces = mesh.faces().iter().map(|f| [inv[f[0] as usize], inv[f[1] as usize], inv[f[2] as usize]]).collect();
-        let moved = TriMesh::new(verts, faces).unwrap();
+            .unwrap();
         let (ba, bb) = (basis_of(&mesh, 30, true), basis_of(&moved, 30, true));
         let pairs = [
             (
@@ -277,7 +256,7 @@ mod tests {
 
     #[test]
     fn bad_parameters_are_errors() {
-        let b = basis_of(&bumpy(2), 10, false);
+        let b = basis_of(&bumpy_sphere(2), 10, false);
         assert!(hks(&b, &[], true).is_err());
         assert!(hks(&b, &[-1.0], true).is_err());
         assert!(wks(&b, 0, true).is_err());

@@ -142,8 +142,7 @@ pub(crate) mod testdata {
     use crate::descriptors::signatures::{hkm, hks, hks_times, wks};
     use crate::descriptors::Descriptors;
     use crate::laplacian::cotangent;
-    use crate::primitives::icosphere;
-    use crate::shape::TriMesh;
+    use crate::primitives::bumpy_sphere;
     use crate::spectral::{eigen_basis, Basis, SpectralOptions};
 
     pub struct Pair {
@@ -157,25 +156,17 @@ pub(crate) mod testdata {
         pub signs: Vec<f64>,
     }
 
-    fn bump(p: [f64; 3]) -> [f64; 3] {
-        let r = 1.0 + 0.15 * (3.0 * p[0] + 1.0).sin() * (2.0 * p[1] + 0.3).cos() + 0.1 * p[2].powi(3) + 0.05 * p[0];
-        [1.3 * r * p[0], r * p[1], 0.9 * r * p[2]]
-    }
-
     fn build() -> Pair {
         let k = 30;
-        let s = icosphere(3);
-        let n = s.n_vertices();
-        let x = TriMesh::new(s.vertices().iter().map(|&p| bump(p)).collect(), s.faces().to_vec()).unwrap();
+        let x = bumpy_sphere(3);
+        let n = x.n_vertices();
         let perm: Vec<usize> = (0..n).map(|i| (i * 7919 + 13) % n).collect();
+        // Y: the permuted copy (same size: an area change would scale C).
+        let y = x.permuted(&perm).unwrap();
         let mut inv = vec![0u32; n];
         for (new, &old) in perm.iter().enumerate() {
             inv[old] = new as u32;
         }
-        // Y: the permuted copy (same size: an area change would scale C).
-        let verts = perm.iter().map(|&old| x.vertices()[old]).collect();
-        let faces = s.faces().iter().map(|f| f.map(|v| inv[v as usize])).collect();
-        let y = TriMesh::new(verts, faces).unwrap();
         let opts = SpectralOptions::new(k);
         let bx = eigen_basis(&cotangent(&x).unwrap(), &opts, None).unwrap().0;
         let mut by = eigen_basis(&cotangent(&y).unwrap(), &opts, None).unwrap().0;

@@ -301,7 +301,7 @@ fn dense_eigen(lap: &Laplacian, sqrt_m: &[f64], k: usize) -> Result<(Vec<f64>, M
 mod tests {
     use super::*;
     use crate::laplacian::{cotangent, graph, VertexWeights};
-    use crate::primitives::{cycle_edges, icosphere, rectangle};
+    use crate::primitives::{bumpy_sphere, cycle_edges, icosphere, rectangle};
     use crate::shape::TriMesh;
 
     fn solve(lap: &Laplacian, k: usize) -> Basis {
@@ -405,37 +405,18 @@ mod tests {
         }
     }
 
-    /// A smooth radial bump without symmetries, so eigenvalues are simple and eigenvector signs
-    /// are intrinsically defined.
-    fn bumpy(p: [f64; 3]) -> [f64; 3] {
-        let r =
-            1.0 + 0.15 * (3.0 * p[0] + 1.0).sin() * (2.0 * p[1] + 0.3).cos() + 0.1 * p[2] * p[2] * p[2] + 0.05 * p[0];
-        [1.3 * r * p[0], r * p[1], 0.9 * r * p[2]]
-    }
-
     #[test]
     fn permuted_and_moved_copy_has_same_spectrum() {
-        let mesh = icosphere(3);
-        let n = mesh.n_vertices();
+        let a = bumpy_sphere(3);
+        let n = a.n_vertices();
         // A deterministic permutation and a rigid motion (rotation about z by 0.7 rad + shift).
         let perm: Vec<usize> = (0..n).map(|i| (i * 7919) % n).collect();
-        let mut inv = vec![0u32; n];
-        for (new, &old) in perm.iter().enumerate() {
-            inv[old] = new as u32;
-        }
         let (c, s) = (0.7f64.cos(), 0.7f64.sin());
-        let verts: Vec<[f64; 3]> = perm
-            .iter()
-            .map(|&old| {
-                let p = mesh.vertices()[old];
-                let p = bumpy(p);
-                [c * p[0] - s * p[1] + 5.0, s * p[0] + c * p[1] - 2.0, p[2] + 1.0]
-            })
-            .collect();
-        let orig: Vec<[f64; 3]> = mesh.vertices().iter().map(|&p| bumpy(p)).collect();
-        let a = TriMesh::new(orig, mesh.faces().to_vec()).unwrap();
-        let faces = mesh.faces().iter().map(|f| [inv[f[0] as usize], inv[f[1] as usize], inv[f[2] as usize]]).collect();
-        let b = TriMesh::new(verts, faces).unwrap();
+        let b = a
+            .permuted(&perm)
+            .unwrap()
+            .map_vertices(|p| [c * p[0] - s * p[1] + 5.0, s * p[0] + c * p[1] - 2.0, p[2] + 1.0])
+            .unwrap();
         let (ba, bb) = (solve(&cotangent(&a).unwrap(), 30), solve(&cotangent(&b).unwrap(), 30));
         for i in 1..30 {
             let rel = (ba.eigenvalues[i] - bb.eigenvalues[i]).abs() / ba.eigenvalues[i];
