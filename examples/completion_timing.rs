@@ -44,7 +44,7 @@ fn faust(args: &[String]) {
     };
     let (bx, by) = (load("data/faust/tr_reg_000.off"), load("data/faust/tr_reg_001.off"));
     let (f, g) = (wks(&bx, 100, true).unwrap(), wks(&by, 100, true).unwrap());
-    let problem = Problem::new(&bx, &by, &f, &g, kp).unwrap();
+    let problem = Problem::new(&bx, &by, &f, &g, kp, funcorr::completion::Scaling::Paper).unwrap();
     let (a0, b0) = init_from_c(Mat::<f64>::identity(k, k).as_ref(), kp, k).unwrap();
     let opts = OptimizeOptions { max_iterations: iterations, ..Default::default() };
     let (_, _, report) = optimize(&problem, &CompletionParams::default(), &opts, a0.as_ref(), b0.as_ref()).unwrap();
@@ -74,7 +74,7 @@ fn main() {
     let xi = 1e-3;
     println!("m = {m}, n = {n}, k' = {kp}, k = {k}, block = {block}, threads = {}", rayon::current_num_threads());
     // Warm-up.
-    let t = terms::l1(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), xi, block);
+    let t = terms::l1(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), xi, None, block);
     println!(
         "value {:e}, ‖∇_A‖ {:e}, ‖∇_B‖ {:e} (bit-identical for any thread count)",
         t.value,
@@ -84,7 +84,7 @@ fn main() {
     let mut times = Vec::new();
     for _ in 0..reps {
         let start = Instant::now();
-        let r = terms::l1(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), xi, block);
+        let r = terms::l1(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), xi, None, block);
         times.push(start.elapsed().as_secs_f64());
         assert_eq!(r.value, t.value, "deterministic");
     }
@@ -99,7 +99,7 @@ fn main() {
     let mut vtimes = Vec::new();
     for _ in 0..reps {
         let start = Instant::now();
-        let v = terms::l1_value(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), xi, block);
+        let v = terms::l1_value(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), xi, None, block);
         vtimes.push(start.elapsed().as_secs_f64());
         assert!((v - t.value).abs() <= 1e-12 * t.value);
     }

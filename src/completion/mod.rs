@@ -33,50 +33,97 @@
 //! Modules: [`terms`] (each term with its gradient), [`objective`] (their weighted sum),
 //! [`optimize`](mod@optimize) (L-BFGS with a strong-Wolfe line search, initializations).
 
+pub mod l1;
+pub mod lbfgs;
 pub mod objective;
 pub mod optimize;
 pub mod terms;
 
 pub use objective::{evaluate, value, CompletionParams, Evaluation, LowNorm, Terms};
+// Scaling is defined below.
 pub use optimize::{init_from_c, init_from_svd, optimize, CompletionReport, OptimizeOptions};
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
 use rayon::prelude::*;
 
+use serde::{Deserialize, Serialize};
+
 use crate::descriptors::Descriptors;
 use crate::error::{Error, Result};
 use crate::spectral::Basis;
+use l1::Weights;
 
-/// The fixed data of problem (11): truncated bases, eigenvalues, data coefficients and Gram matrices.
+/// How the terms of (11) are normalized ([`crate::completion`] module documentation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Scaling {
+    /// The paper's (11) as written, with mass-weighted data coefficients: raw eigenvalues, L1
+    /// over the m × n matrix Ψ C Φᵀ of the mass-orthonormal bases, Euclidean low norm.
+    Paper,
+    /// Scale-free: both shapes rescaled to unit area, the data term relative to the data's
+    /// energy, Dirichlet energies relative to that of an orthonormal map, the L1 term the
+    /// integral ∫∫|t(y, x)| dy dx of the correspondence kernel, the low norm per rank.
+    #[default]
+    Unit,
+}
+
+/// The fixed data of problem (11): truncated bases, eigenvalues, data coefficients and Gram
+/// matrices, normalized according to a [`Scaling`].
 #[derive(Clone, Debug)]
 pub struct Problem {
-    /// Φ_k' (n × k').
+    /// The normalization of the terms.
+    pub scaling: Scaling,
+    /// Φ_k' (n × k'); with [`Scaling::Unit`] multiplied by √area(X) (unit-area mass-orthonormal).
     pub phi: Mat<f64>,
-    /// Ψ_k' (m × k').
+    /// Ψ_k' (m × k'); with [`Scaling::Unit`] multiplied by √area(Y).
     pub psi: Mat<f64>,
-    /// Eigenvalues of X (k'), the diagonal of Λ_X.
+    /// Weights of the Dirichlet term on X (k'): λ^X_j ([`Scaling::Paper`]) or λ^X_j / Σ_l λ^X_l.
     pub lambda_x: Vec<f64>,
-    /// Eigenvalues of Y (k'), the diagonal of Λ_Y.
+    /// Weights of the Dirichlet term on Y (k'), as `lambda_x`.
     pub lambda_y: Vec<f64>,
-    /// Â = Φ_k'ᵀ A_X F (k' × q).
+    /// The eigenvalues of X (k', in the units of the input basis), for the commutativity term.
+    pub eigenvalues_x: Vec<f64>,
+    /// The eigenvalues of Y (k').
+    pub eigenvalues_y: Vec<f64>,
+    /// Â = Φ_k'ᵀ A_X F (k' × q); with [`Scaling::Unit`] in unit-area units and divided by √s,
+    /// s = (‖F‖²_{A_X} + ‖G‖²_{A_Y}) / 2 (unit areas), so the data term is a relative residual.
     pub f_hat: Mat<f64>,
-    /// B̂ = Ψ_k'ᵀ A_Y G (k' × q).
+    /// B̂ = Ψ_k'ᵀ A_Y G (k' × q), normalized as `f_hat`.
     pub g_hat: Mat<f64>,
-    /// Φ_k'ᵀ Φ_k' (k' × k'), for the Euclidean low-norm term.
+    /// Φ_k'ᵀ Φ_k' (k' × k'), for the Euclidean low-norm term ([`Scaling::Paper`]).
     pub gram_x: Mat<f64>,
     /// Ψ_k'ᵀ Ψ_k' (k' × k').
     pub gram_y: Mat<f64>,
+    /// Weights w^X (n) of the entries of T in the L1 term: the unit-area vertex areas
+    /// ([`Scaling::Unit`]); `None` for unweighted.
+    pub l1_weights_x: Option<Vec<f64>>,
+    /// Weights w^Y (m), as `l1_weights_x`.
+    pub l1_weights_y: Option<Vec<f64>>,
+    /// The factor from this problem's C = A Bᵀ to the functional map between the input bases:
+    /// C_bases = `c_scale` · C, with `c_scale` = √(area(Y) / area(X)) ([`Scaling::Unit`]) or 1.
+    pub c_scale: f64,
+}
+
+fn area(mass: &[f64]) -> f64 {
+    mass.iter().sum()
 }
 
 impl Problem {
     /// Problem (11) for shapes with bases `x`, `y` and data `f` (n × q on X), `g` (m × q on Y),
-    /// using the first `k_prime` eigenpairs of each basis.
+    /// using the first `k_prime` eigenpairs of each basis, normalized by `scaling`.
     ///
     /// Errors: F and G with different column counts, F or G whose row count is not the vertex
-    /// count of its basis, `k_prime` = 0, more than either basis holds, or not below the number of
-    /// vertices.
-    pub fn new(x: &Basis, y: &Basis, f: &Descriptors, g: &Descriptors, k_prime: usize) -> Result<Problem> {
+    /// count of its basis, non-finite data, `k_prime` = 0, more than either basis holds, or not
+    /// below the number of vertices.
+    pub fn new(
+        x: &Basis,
+        y: &Basis,
+        f: &Descriptors,
+        g: &Descriptors,
+        k_prime: usize,
+        scaling: Scaling,
+    ) -> Result<Problem> {
         if f.q() != g.q() {
             return Err(Error::invalid(
                 "data",
@@ -107,23 +154,66 @@ impl Problem {
                 format!("k' = {k_prime} must be below the vertex counts ({} and {})", x.n(), y.n()),
             ));
         }
-        let phi = x.eigenvectors.subcols(0, k_prime).to_owned();
-        let psi = y.eigenvectors.subcols(0, k_prime).to_owned();
+        let finite = |d: &Descriptors| (0..d.q()).all(|j| (0..d.n()).all(|i| d.values[(i, j)].is_finite()));
+        if !finite(f) || !finite(g) {
+            return Err(Error::invalid("data", "F or G contains a non-finite value"));
+        }
+        let (area_x, area_y) = (area(&x.mass), area(&y.mass));
+        if !(area_x > 0.0 && area_y > 0.0 && area_x.is_finite() && area_y.is_finite()) {
+            return Err(Error::invalid("bases", "the vertex weights must have a positive, finite sum"));
+        }
+        let (sx, sy) = match scaling {
+            Scaling::Paper => (1.0, 1.0),
+            Scaling::Unit => (area_x.sqrt(), area_y.sqrt()),
+        };
+        let phi = Mat::from_fn(x.n(), k_prime, |i, j| sx * x.eigenvectors[(i, j)]);
+        let psi = Mat::from_fn(y.n(), k_prime, |i, j| sy * y.eigenvectors[(i, j)]);
+        // Mass of the (rescaled) shapes: a / area for Unit.
+        let (mx, my): (Vec<f64>, Vec<f64>) = match scaling {
+            Scaling::Paper => (x.mass.clone(), y.mass.clone()),
+            Scaling::Unit => (x.mass.iter().map(|a| a / area_x).collect(), y.mass.iter().map(|a| a / area_y).collect()),
+        };
         let weighted = |d: &Descriptors, mass: &[f64]| Mat::from_fn(d.n(), d.q(), |i, j| mass[i] * d.values[(i, j)]);
-        let f_hat = gemm_tn(phi.as_ref(), weighted(f, &x.mass).as_ref());
-        let g_hat = gemm_tn(psi.as_ref(), weighted(g, &y.mass).as_ref());
-        Problem::from_coefficients(
-            phi,
-            psi,
-            x.eigenvalues[..k_prime].to_vec(),
-            y.eigenvalues[..k_prime].to_vec(),
-            f_hat,
-            g_hat,
-        )
+        let mut f_hat = gemm_tn(phi.as_ref(), weighted(f, &mx).as_ref());
+        let mut g_hat = gemm_tn(psi.as_ref(), weighted(g, &my).as_ref());
+        let (lambda_x, lambda_y) = match scaling {
+            Scaling::Paper => (x.eigenvalues[..k_prime].to_vec(), y.eigenvalues[..k_prime].to_vec()),
+            Scaling::Unit => {
+                let rel = |l: &[f64]| {
+                    let s: f64 = l.iter().sum();
+                    l.iter().map(|v| if s > 0.0 { v / s } else { 0.0 }).collect::<Vec<f64>>()
+                };
+                (rel(&x.eigenvalues[..k_prime]), rel(&y.eigenvalues[..k_prime]))
+            }
+        };
+        let (mut l1_weights_x, mut l1_weights_y, mut c_scale) = (None, None, 1.0);
+        if scaling == Scaling::Unit {
+            let energy = |d: &Descriptors, mass: &[f64]| {
+                (0..d.q()).map(|j| (0..d.n()).map(|i| mass[i] * d.values[(i, j)].powi(2)).sum::<f64>()).sum::<f64>()
+            };
+            let s = 0.5 * (energy(f, &mx) + energy(g, &my));
+            if !(s > 0.0 && s.is_finite()) {
+                return Err(Error::invalid("data", "F and G are zero; there is nothing to match"));
+            }
+            f_hat *= faer::Scale(1.0 / s.sqrt());
+            g_hat *= faer::Scale(1.0 / s.sqrt());
+            l1_weights_x = Some(mx);
+            l1_weights_y = Some(my);
+            c_scale = (area_y / area_x).sqrt();
+        }
+        let mut p = Problem::from_coefficients(phi, psi, lambda_x, lambda_y, f_hat, g_hat)?;
+        p.scaling = scaling;
+        p.eigenvalues_x = x.eigenvalues[..k_prime].to_vec();
+        p.eigenvalues_y = y.eigenvalues[..k_prime].to_vec();
+        p.l1_weights_x = l1_weights_x;
+        p.l1_weights_y = l1_weights_y;
+        p.c_scale = c_scale;
+        Ok(p)
     }
 
-    /// A problem from its parts directly (any bases, e.g. random ones in tests); computes the
-    /// Gram matrices. `f_hat`, `g_hat` are the k' × q coefficient matrices.
+    /// A problem from its parts directly (any bases, e.g. random ones in tests), with
+    /// [`Scaling::Paper`] and `lambda_*` used both as Dirichlet weights and eigenvalues; computes
+    /// the Gram matrices. `f_hat`, `g_hat` are the k' × q coefficient matrices.
     pub fn from_coefficients(
         phi: Mat<f64>,
         psi: Mat<f64>,
@@ -158,7 +248,22 @@ impl Problem {
         }
         let gram_x = gemm_tn(phi.as_ref(), phi.as_ref());
         let gram_y = gemm_tn(psi.as_ref(), psi.as_ref());
-        Ok(Problem { phi, psi, lambda_x, lambda_y, f_hat, g_hat, gram_x, gram_y })
+        Ok(Problem {
+            scaling: Scaling::Paper,
+            phi,
+            psi,
+            eigenvalues_x: lambda_x.clone(),
+            eigenvalues_y: lambda_y.clone(),
+            lambda_x,
+            lambda_y,
+            f_hat,
+            g_hat,
+            gram_x,
+            gram_y,
+            l1_weights_x: None,
+            l1_weights_y: None,
+            c_scale: 1.0,
+        })
     }
 
     /// k', the number of basis functions of each shape.
@@ -174,6 +279,25 @@ impl Problem {
     /// m, the vertex count of Y.
     pub fn m(&self) -> usize {
         self.psi.nrows()
+    }
+
+    /// The L1 entry weights, if any.
+    pub fn l1_weights(&self) -> Option<Weights<'_>> {
+        match (&self.l1_weights_y, &self.l1_weights_x) {
+            (Some(y), Some(x)) => Some(Weights { y, x }),
+            _ => None,
+        }
+    }
+
+    /// This problem's C (r × c) from a functional map between the input bases (e.g.
+    /// Ovsjanikov's): C / `c_scale`.
+    pub fn c_from_bases(&self, c_bases: MatRef<f64>) -> Mat<f64> {
+        c_bases.to_owned() * faer::Scale(1.0 / self.c_scale)
+    }
+
+    /// The functional map between the input bases of this problem's C: `c_scale` · C.
+    pub fn c_to_bases(&self, c: MatRef<f64>) -> Mat<f64> {
+        c.to_owned() * faer::Scale(self.c_scale)
     }
 }
 
@@ -309,7 +433,7 @@ mod tests {
         };
         let (f, g) = (data(&bx), data(&by));
         let (kp, k) = (40, 30);
-        let problem = Problem::new(&bx, &by, &f, &g, kp).unwrap();
+        let problem = Problem::new(&bx, &by, &f, &g, kp, Scaling::Paper).unwrap();
         // Identity-ish start: C = I_{k'×k} plus a perturbation.
         let (a0, b0) = init_from_c(Mat::<f64>::identity(kp, k).as_ref(), kp, k).unwrap();
         let a0 = a0 + testutil::randn(kp, k, 42) * 0.05;

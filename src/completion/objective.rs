@@ -4,7 +4,7 @@ use faer::{Mat, MatRef};
 use serde::{Deserialize, Serialize};
 
 use super::terms::{self, TermValue};
-use super::Problem;
+use super::{Problem, Scaling};
 
 /// Which norm the low-norm term μ4/2 (‖Ψ A‖² + ‖Φ B‖²) uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -98,12 +98,29 @@ fn check_shapes(problem: &Problem, a: MatRef<f64>, b: MatRef<f64>) {
     );
 }
 
-fn k_comm(problem: &Problem, params: &CompletionParams) -> usize {
-    if params.k_comm == 0 {
-        problem.k_prime()
-    } else {
-        params.k_comm.min(problem.k_prime())
+/// The Gram matrices (Euclidean norm, [`Scaling::Paper`] only) and the factor of the low-norm
+/// term: 1 ([`Scaling::Paper`]) or 1/k ([`Scaling::Unit`], mass norms, so that an orthonormal
+/// rank-k map has low norm 1).
+fn low_norm_setup<'p>(
+    problem: &'p Problem,
+    params: &CompletionParams,
+    k: usize,
+) -> (Option<(MatRef<'p, f64>, MatRef<'p, f64>)>, f64) {
+    match (problem.scaling, params.low_norm) {
+        (Scaling::Unit, _) => (None, 1.0 / k as f64),
+        (Scaling::Paper, LowNorm::Euclidean) => (Some((problem.gram_x.as_ref(), problem.gram_y.as_ref())), 1.0),
+        (Scaling::Paper, LowNorm::Mass) => (None, 1.0),
     }
+}
+
+/// Eigenvalues of the commutativity term, divided by the largest of both in the block (so the
+/// weight means the same as [`crate::fmap::OvsjanikovOptions::commutativity`]), and the block size.
+fn comm_setup(problem: &Problem, params: &CompletionParams) -> (Vec<f64>, Vec<f64>, usize) {
+    let kc = if params.k_comm == 0 { problem.k_prime() } else { params.k_comm.min(problem.k_prime()) };
+    let (ex, ey) = (&problem.eigenvalues_x[..kc], &problem.eigenvalues_y[..kc]);
+    let lmax = ex.iter().chain(ey).fold(0.0f64, |m, l| m.max(l.abs()));
+    let norm = if lmax > 0.0 { lmax } else { 1.0 };
+    (ex.iter().map(|l| l / norm).collect(), ey.iter().map(|l| l / norm).collect(), kc)
 }
 
 /// The objective of (11) (plus the optional commutativity term) and its gradient at (A, B).
@@ -126,19 +143,24 @@ pub fn evaluate(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b:
         terms.dirichlet_y = add(params.mu2, terms::dirichlet_y(a, b, &problem.lambda_y));
     }
     if params.mu3 != 0.0 {
-        let t = terms::l1(a, b, problem.phi.as_ref(), problem.psi.as_ref(), params.xi, params.block_rows);
+        let t = terms::l1(
+            a,
+            b,
+            problem.phi.as_ref(),
+            problem.psi.as_ref(),
+            params.xi,
+            problem.l1_weights(),
+            params.block_rows,
+        );
         terms.l1 = add(params.mu3, t);
     }
     if params.mu4 != 0.0 {
-        let grams = match params.low_norm {
-            LowNorm::Euclidean => Some((problem.gram_x.as_ref(), problem.gram_y.as_ref())),
-            LowNorm::Mass => None,
-        };
-        terms.low_norm = add(params.mu4, terms::low_norm(a, b, grams));
+        let (grams, w) = low_norm_setup(problem, params, a.ncols());
+        terms.low_norm = add(params.mu4 * w, terms::low_norm(a, b, grams));
     }
     if params.mu_comm != 0.0 {
-        let t = terms::commutativity(a, b, &problem.lambda_x, &problem.lambda_y, k_comm(problem, params));
-        terms.commutativity = add(params.mu_comm, t);
+        let (lx, ly, kc) = comm_setup(problem, params);
+        terms.commutativity = add(params.mu_comm, terms::commutativity(a, b, &lx, &ly, kc));
     }
     terms.total = terms.data + terms.dirichlet_x + terms.dirichlet_y + terms.l1 + terms.low_norm + terms.commutativity;
     Evaluation { terms, grad_a, grad_b }
@@ -158,18 +180,23 @@ pub fn value(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b: Ma
     }
     if params.mu3 != 0.0 {
         terms.l1 = params.mu3
-            * terms::l1_value(a, b, problem.phi.as_ref(), problem.psi.as_ref(), params.xi, params.block_rows);
+            * terms::l1_value(
+                a,
+                b,
+                problem.phi.as_ref(),
+                problem.psi.as_ref(),
+                params.xi,
+                problem.l1_weights(),
+                params.block_rows,
+            );
     }
     if params.mu4 != 0.0 {
-        let grams = match params.low_norm {
-            LowNorm::Euclidean => Some((problem.gram_x.as_ref(), problem.gram_y.as_ref())),
-            LowNorm::Mass => None,
-        };
-        terms.low_norm = params.mu4 * terms::low_norm(a, b, grams).value;
+        let (grams, w) = low_norm_setup(problem, params, a.ncols());
+        terms.low_norm = params.mu4 * w * terms::low_norm(a, b, grams).value;
     }
     if params.mu_comm != 0.0 {
-        terms.commutativity = params.mu_comm
-            * terms::commutativity(a, b, &problem.lambda_x, &problem.lambda_y, k_comm(problem, params)).value;
+        let (lx, ly, kc) = comm_setup(problem, params);
+        terms.commutativity = params.mu_comm * terms::commutativity(a, b, &lx, &ly, kc).value;
     }
     terms.total = terms.data + terms.dirichlet_x + terms.dirichlet_y + terms.l1 + terms.low_norm + terms.commutativity;
     terms

@@ -1,15 +1,13 @@
 //! Minimization of (11) over x = (A, B) by L-BFGS with a strong-Wolfe line search, and the
 //! paper's initializations.
 
-use std::collections::VecDeque;
-use std::time::Instant;
-
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
 use faer::{Mat, MatRef, Par};
 use serde::Serialize;
 
-use super::objective::{evaluate, CompletionParams, Evaluation, Terms};
+use super::lbfgs;
+use super::objective::{evaluate, CompletionParams, Terms};
 use super::Problem;
 use crate::error::{Error, Result};
 
@@ -74,8 +72,27 @@ pub struct CompletionReport {
     pub seconds_per_iteration: f64,
 }
 
+impl CompletionReport {
+    /// The report of an L-BFGS run.
+    pub(crate) fn from_outcome(out: lbfgs::Outcome) -> Self {
+        CompletionReport {
+            iterations: out.iterations,
+            evaluations: out.evaluations,
+            converged: out.converged,
+            stop_reason: out.stop_reason,
+            initial_terms: out.initial_terms,
+            terms: out.terms,
+            objective_history: out.history,
+            gradient_norm_initial: out.gradient_norm_initial,
+            gradient_norm_final: out.gradient_norm_final,
+            seconds_total: out.seconds,
+            seconds_per_iteration: out.seconds / out.iterations.max(1) as f64,
+        }
+    }
+}
+
 /// x = (vec A, vec B), column-major.
-fn pack(a: MatRef<f64>, b: MatRef<f64>) -> Vec<f64> {
+pub(crate) fn pack(a: MatRef<f64>, b: MatRef<f64>) -> Vec<f64> {
     let mut x = Vec::with_capacity(2 * a.nrows() * a.ncols());
     for m in [a, b] {
         for j in 0..m.ncols() {
@@ -87,120 +104,17 @@ fn pack(a: MatRef<f64>, b: MatRef<f64>) -> Vec<f64> {
     x
 }
 
-fn unpack(x: &[f64], kp: usize, k: usize) -> (Mat<f64>, Mat<f64>) {
+pub(crate) fn unpack(x: &[f64], kp: usize, k: usize) -> (Mat<f64>, Mat<f64>) {
     let half = kp * k;
     let a = Mat::from_fn(kp, k, |i, j| x[j * kp + i]);
     let b = Mat::from_fn(kp, k, |i, j| x[half + j * kp + i]);
     (a, b)
 }
 
-fn dot(x: &[f64], y: &[f64]) -> f64 {
-    x.iter().zip(y).map(|(a, b)| a * b).sum()
-}
-
-fn axpy(alpha: f64, x: &[f64], y: &[f64]) -> Vec<f64> {
-    x.iter().zip(y).map(|(xi, yi)| yi + alpha * xi).collect()
-}
-
-/// A point of the line search: step, objective, directional derivative, gradient and terms.
-struct Point {
-    alpha: f64,
-    f: f64,
-    d: f64,
-    grad: Vec<f64>,
-    terms: Terms,
-}
-
-/// Minimizer of the cubic through (a0, f0, d0), (a1, f1, d1), safeguarded to the inner 80 % of
-/// the interval (bisection when the cubic has no minimizer).
-fn cubic_step(lo: &Point, hi: &Point) -> f64 {
-    let (a0, a1) = (lo.alpha, hi.alpha);
-    let d1 = lo.d + hi.d - 3.0 * (lo.f - hi.f) / (a0 - a1);
-    let disc = d1 * d1 - lo.d * hi.d;
-    let mid = 0.5 * (a0 + a1);
-    let mut a = if disc >= 0.0 {
-        let d2 = (a1 - a0).signum() * disc.sqrt();
-        a1 - (a1 - a0) * (hi.d + d2 - d1) / (hi.d - lo.d + 2.0 * d2)
-    } else {
-        mid
-    };
-    let (left, right) = (a0.min(a1), a0.max(a1));
-    let w = right - left;
-    if !a.is_finite() || a < left + 0.1 * w || a > right - 0.1 * w {
-        a = if a.is_finite() { a.clamp(left + 0.1 * w, right - 0.1 * w) } else { mid };
-    }
-    a
-}
-
-/// Strong-Wolfe line search (Nocedal & Wright, Algorithms 3.5 and 3.6, cubic interpolation).
-/// Returns the accepted point, which always satisfies sufficient decrease; if the curvature
-/// condition is not met within the budget, the best sufficient-decrease point found is
-/// returned; `None` if there is none.
-fn line_search(
-    eval: &mut dyn FnMut(f64) -> Point,
-    f0: f64,
-    d0: f64,
-    alpha0: f64,
-    opts: &OptimizeOptions,
-) -> Option<Point> {
-    let armijo = |p: &Point| p.f <= f0 + opts.c1 * p.alpha * d0;
-    let curvature = |p: &Point| p.d.abs() <= -opts.c2 * d0;
-    let mut best: Option<Point> = None;
-    let keep = |p: &Point, best: &mut Option<Point>| {
-        if armijo(p) && best.as_ref().is_none_or(|b| p.f < b.f) {
-            *best = Some(Point { alpha: p.alpha, f: p.f, d: p.d, grad: p.grad.clone(), terms: p.terms.clone() });
-        }
-    };
-    let mut prev = Point { alpha: 0.0, f: f0, d: d0, grad: Vec::new(), terms: Terms::default() };
-    let mut alpha = alpha0;
-    let mut evals = 0;
-    // Bracketing phase.
-    let (mut lo, mut hi) = loop {
-        if evals >= opts.max_line_search {
-            return best;
-        }
-        let p = eval(alpha);
-        evals += 1;
-        keep(&p, &mut best);
-        if !p.f.is_finite() || !armijo(&p) || (evals > 1 && p.f >= prev.f) {
-            break (prev, p);
-        }
-        if curvature(&p) {
-            return Some(p);
-        }
-        if p.d >= 0.0 {
-            break (p, prev);
-        }
-        alpha = 2.0 * p.alpha;
-        prev = p;
-    };
-    // Zoom phase: lo satisfies sufficient decrease with the lowest f so far.
-    loop {
-        if evals >= opts.max_line_search || (hi.alpha - lo.alpha).abs() < 1e-16 * lo.alpha.abs().max(1e-300) {
-            return best;
-        }
-        let a = if hi.f.is_finite() { cubic_step(&lo, &hi) } else { 0.5 * (lo.alpha + hi.alpha) };
-        let p = eval(a);
-        evals += 1;
-        keep(&p, &mut best);
-        if !p.f.is_finite() || !armijo(&p) || p.f >= lo.f {
-            hi = p;
-        } else {
-            if curvature(&p) {
-                return Some(p);
-            }
-            if p.d * (hi.alpha - lo.alpha) >= 0.0 {
-                hi = lo;
-            }
-            lo = p;
-        }
-    }
-}
-
 /// Minimizes (11) over (A, B) from (`a0`, `b0`) (both k' × k) by L-BFGS with a strong-Wolfe
-/// line search. Every accepted step satisfies sufficient decrease, so the objective is
-/// non-increasing. Stops on relative objective change ≤ `rel_tol`, on ‖∇f‖ ≤ `grad_tol`·‖∇f₀‖,
-/// at the iteration cap, or when a line search finds no decrease.
+/// line search ([`super::lbfgs::minimize`]). Every accepted step satisfies sufficient decrease,
+/// so the objective is non-increasing. Stops on relative objective change ≤ `rel_tol`, on
+/// ‖∇f‖ ≤ `grad_tol`·‖∇f₀‖, at the iteration cap, or when a line search finds no decrease.
 pub fn optimize(
     problem: &Problem,
     params: &CompletionParams,
@@ -225,117 +139,14 @@ pub fn optimize(
         return Err(Error::invalid("k", format!("k = {} exceeds k' = {kp}", a0.ncols())));
     }
     let k = a0.ncols();
-    let start = Instant::now();
-    let mut evaluations = 0usize;
-    let mut eval_at = |x: &[f64]| -> Evaluation {
-        evaluations += 1;
+    let mut eval = |x: &[f64]| {
         let (a, b) = unpack(x, kp, k);
-        evaluate(problem, params, a.as_ref(), b.as_ref())
+        let e = evaluate(problem, params, a.as_ref(), b.as_ref());
+        (e.terms, pack(e.grad_a.as_ref(), e.grad_b.as_ref()))
     };
-    let grad_of = |e: &Evaluation| pack(e.grad_a.as_ref(), e.grad_b.as_ref());
-
-    let mut x = pack(a0, b0);
-    let e0 = eval_at(&x);
-    if !e0.terms.total.is_finite() {
-        return Err(Error::numerical("completion", "the objective is not finite at the initialization"));
-    }
-    let initial_terms = e0.terms.clone();
-    let mut f = e0.terms.total;
-    let mut terms = e0.terms.clone();
-    let mut g = grad_of(&e0);
-    let g0_norm = dot(&g, &g).sqrt();
-    let mut history = vec![f];
-    let mut pairs: VecDeque<(Vec<f64>, Vec<f64>, f64)> = VecDeque::new(); // (s, y, 1/yᵀs)
-    let mut iterations = 0;
-    let (mut converged, mut stop_reason) = (false, String::from("iteration cap reached"));
-    if g0_norm == 0.0 {
-        converged = true;
-        stop_reason = "zero gradient at the initialization".into();
-    }
-    while !converged && iterations < opts.max_iterations {
-        // Two-loop recursion: p = −H g.
-        let mut q = g.clone();
-        let mut alphas = Vec::with_capacity(pairs.len());
-        for (s, y, rho) in pairs.iter().rev() {
-            let a = rho * dot(s, &q);
-            q = axpy(-a, y, &q);
-            alphas.push(a);
-        }
-        if let Some((s, y, _)) = pairs.back() {
-            let gamma = dot(s, y) / dot(y, y);
-            q.iter_mut().for_each(|v| *v *= gamma);
-        }
-        for ((s, y, rho), a) in pairs.iter().zip(alphas.iter().rev()) {
-            let b = rho * dot(y, &q);
-            q = axpy(a - b, s, &q);
-        }
-        let mut p: Vec<f64> = q.iter().map(|v| -v).collect();
-        let mut d0 = dot(&p, &g);
-        if d0.is_nan() || d0 >= 0.0 {
-            // Not a descent direction: restart from steepest descent.
-            pairs.clear();
-            p = g.iter().map(|v| -v).collect();
-            d0 = dot(&p, &g);
-        }
-        let alpha0 = if pairs.is_empty() { (1.0 / dot(&p, &p).sqrt()).min(1.0) } else { 1.0 };
-        let xc = x.clone();
-        let pc = p.clone();
-        let mut phi = |alpha: f64| -> Point {
-            let xa = axpy(alpha, &pc, &xc);
-            let e = eval_at(&xa);
-            let grad = grad_of(&e);
-            Point { alpha, f: e.terms.total, d: dot(&grad, &pc), grad, terms: e.terms }
-        };
-        let Some(pt) = line_search(&mut phi, f, d0, alpha0, opts) else {
-            if !pairs.is_empty() {
-                // Retry from steepest descent before giving up.
-                pairs.clear();
-                continue;
-            }
-            stop_reason = "line search found no decrease along the steepest descent direction".into();
-            break;
-        };
-        let x_new = axpy(pt.alpha, &p, &x);
-        let s: Vec<f64> = x_new.iter().zip(&x).map(|(a, b)| a - b).collect();
-        let y: Vec<f64> = pt.grad.iter().zip(&g).map(|(a, b)| a - b).collect();
-        let sy = dot(&s, &y);
-        if sy > 1e-12 * dot(&s, &s).sqrt() * dot(&y, &y).sqrt() {
-            if pairs.len() == opts.memory.max(1) {
-                pairs.pop_front();
-            }
-            pairs.push_back((s, y, 1.0 / sy));
-        }
-        let f_old = f;
-        x = x_new;
-        f = pt.f;
-        g = pt.grad;
-        terms = pt.terms;
-        iterations += 1;
-        history.push(f);
-        if f_old - f <= opts.rel_tol * f_old.abs() {
-            converged = true;
-            stop_reason = format!("relative objective change ≤ {:e}", opts.rel_tol);
-        } else if dot(&g, &g).sqrt() <= opts.grad_tol * g0_norm {
-            converged = true;
-            stop_reason = format!("gradient norm ≤ {:e} of its initial value", opts.grad_tol);
-        }
-    }
-    let seconds_total = start.elapsed().as_secs_f64();
-    let (a, b) = unpack(&x, kp, k);
-    let report = CompletionReport {
-        iterations,
-        evaluations,
-        converged,
-        stop_reason,
-        initial_terms,
-        terms,
-        objective_history: history,
-        gradient_norm_initial: g0_norm,
-        gradient_norm_final: dot(&g, &g).sqrt(),
-        seconds_total,
-        seconds_per_iteration: seconds_total / iterations.max(1) as f64,
-    };
-    Ok((a, b, report))
+    let out = lbfgs::minimize(pack(a0, b0), opts, &mut eval)?;
+    let (a, b) = unpack(&out.x, kp, k);
+    Ok((a, b, CompletionReport::from_outcome(out)))
 }
 
 /// The paper's initialization from a functional map C (r × c, r ≤ k', c ≤ k), e.g. Ovsjanikov's:

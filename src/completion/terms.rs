@@ -4,10 +4,9 @@
 //! Several terms depend on (A, B) only through C = A Bᵀ (k' × k'); for those, with
 //! G = ∂f/∂C, the chain rule gives ∇_A f = G B and ∇_B f = Gᵀ A.
 
-use faer::linalg::matmul::matmul;
-use faer::{Accum, Mat, MatRef, Par};
-use rayon::prelude::*;
+use faer::{Mat, MatRef};
 
+use super::l1::{soft_l1, Products, Weights};
 use super::{gemm_nn, gemm_tn, mul};
 
 /// The value of one term and its gradients with respect to A and B.
@@ -100,177 +99,76 @@ pub fn low_norm(a: MatRef<f64>, b: MatRef<f64>, grams: Option<(MatRef<f64>, MatR
     TermValue { value, grad_a, grad_b }
 }
 
-/// Maximum number of independent accumulators of the L1 gradient (each n × k). The row blocks
-/// of T are split into this many contiguous groups, independently of the thread count, so the
-/// result does not depend on the number of threads.
-const L1_GROUPS: usize = 4;
-
-/// Lanes of the elementwise loops: independent accumulators, so that the sums vectorize
-/// without reassociation (the result is the same whichever instruction set runs it).
-const LANES: usize = 8;
-
-/// In place t ← t / √(t² + ξ) over the columns of a block; returns Σ √(t² + ξ).
-#[inline(always)]
-fn soft_abs_in_place_generic(t: &mut Mat<f64>, xi: f64) -> f64 {
-    let mut acc = [0.0f64; LANES];
-    for j in 0..t.ncols() {
-        let col = t.col_as_slice_mut(j);
-        let mut chunks = col.chunks_exact_mut(LANES);
-        for c in &mut chunks {
-            for l in 0..LANES {
-                let r = (c[l] * c[l] + xi).sqrt();
-                acc[l] += r;
-                c[l] /= r;
-            }
-        }
-        for (l, x) in chunks.into_remainder().iter_mut().enumerate() {
-            let r = (*x * *x + xi).sqrt();
-            acc[l] += r;
-            *x /= r;
-        }
-    }
-    acc.iter().sum()
-}
-
-/// Σ √(t² + ξ) over a block.
-#[inline(always)]
-fn soft_abs_sum_generic(t: &Mat<f64>, xi: f64) -> f64 {
-    let mut acc = [0.0f64; LANES];
-    for j in 0..t.ncols() {
-        let col = t.col_as_slice(j);
-        let mut chunks = col.chunks_exact(LANES);
-        for c in &mut chunks {
-            for l in 0..LANES {
-                acc[l] += (c[l] * c[l] + xi).sqrt();
-            }
-        }
-        for (l, x) in chunks.remainder().iter().enumerate() {
-            acc[l] += (x * x + xi).sqrt();
-        }
-    }
-    acc.iter().sum()
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn soft_abs_in_place_avx2(t: &mut Mat<f64>, xi: f64) -> f64 {
-    soft_abs_in_place_generic(t, xi)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn soft_abs_sum_avx2(t: &Mat<f64>, xi: f64) -> f64 {
-    soft_abs_sum_generic(t, xi)
-}
-
-/// [`soft_abs_in_place_generic`], compiled for AVX2 when the CPU has it (the crate is built
-/// for the baseline x86-64, whose SSE2 vectors are half as wide).
-fn soft_abs_in_place(t: &mut Mat<f64>, xi: f64) -> f64 {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU supports AVX2, checked just above.
-        return unsafe { soft_abs_in_place_avx2(t, xi) };
-    }
-    soft_abs_in_place_generic(t, xi)
-}
-
-/// [`soft_abs_sum_generic`] with the same dispatch.
-fn soft_abs_sum(t: &Mat<f64>, xi: f64) -> f64 {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU supports AVX2, checked just above.
-        return unsafe { soft_abs_sum_avx2(t, xi) };
-    }
-    soft_abs_sum_generic(t, xi)
-}
-
-/// Contiguous ranges of row blocks, one per group.
-fn block_groups(m: usize, block: usize) -> (usize, Vec<std::ops::Range<usize>>) {
-    let nblocks = m.div_ceil(block);
-    let groups = L1_GROUPS.min(nblocks).max(1);
-    let ranges = (0..groups).map(|g| g * nblocks / groups..(g + 1) * nblocks / groups).collect();
-    (nblocks, ranges)
-}
-
-/// L1 term of (11) without its weight: Σ_ij √(t_ij² + ξ) over T = Ψ_k' A Bᵀ Φ_k'ᵀ (m × n), the
-/// smooth approximation |t| ≈ √(t² + ξ) of the paper.
+/// L1 term of (11) without its weight: Σ_ij w_ij √(t_ij² + ξ) over T = Ψ_k' A Bᵀ Φ_k'ᵀ (m × n),
+/// the smooth approximation |t| ≈ √(t² + ξ) of the paper, with optional entry weights
+/// w_ij = w^Y_i w^X_j ([`super::scaling`]).
 ///
-/// With U = Ψ A (m × k), V = Φ B (n × k), T = U Vᵀ and S = ∂/∂T = T ⊘ √(T² + ξ):
-/// ∇_A = Ψᵀ (S V), ∇_B = Φᵀ (Sᵀ U).
+/// With U = Ψ A (m × k), V = Φ B (n × k), T = U Vᵀ and S = ∂/∂T:
+/// ∇_A = Ψᵀ S V = Z B and ∇_B = Φᵀ Sᵀ U = Zᵀ A with Z = Ψᵀ S Φ (k' × k').
 ///
-/// T is never stored: row blocks of `block_rows` rows, T_r = U_r Vᵀ (block × n), are formed,
-/// turned into S_r in place, and accumulated as ∇_A += Ψ_rᵀ (S_r V) and Sᵀ U += S_rᵀ U_r; the
-/// blocks run in parallel in a fixed number of groups. Memory O((m + n)·k' + block·n).
-/// Cost 6·m·n·k flops for the three block products.
-pub fn l1(a: MatRef<f64>, b: MatRef<f64>, phi: MatRef<f64>, psi: MatRef<f64>, xi: f64, block_rows: usize) -> TermValue {
+/// T is never stored (see [`super::l1`]). When k' < 2k, Z is accumulated directly
+/// (2·m·n·(k + k') flops), otherwise S V and Sᵀ U are (6·m·n·k flops); memory
+/// O((m + n)·k' + block·n).
+pub fn l1(
+    a: MatRef<f64>,
+    b: MatRef<f64>,
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    xi: f64,
+    weights: Option<Weights>,
+    block_rows: usize,
+) -> TermValue {
     let u = gemm_nn(psi, a); // m × k
     let v = gemm_nn(phi, b); // n × k
-    let (m, n, k, kp) = (u.nrows(), v.nrows(), u.ncols(), a.nrows());
-    let block = block_rows.max(1);
-    let (_, ranges) = block_groups(m, block);
-    let partials: Vec<(f64, Mat<f64>, Mat<f64>)> = ranges
-        .par_iter()
-        .map(|range| {
-            let mut value = 0.0;
-            let mut ga = Mat::<f64>::zeros(kp, k);
-            let mut sv = Mat::<f64>::zeros(n, k); // Σ S_rᵀ U_r
-            let mut t = Mat::<f64>::zeros(0, 0);
-            let mut su = Mat::<f64>::zeros(0, 0);
-            for bi in range.clone() {
-                let r0 = bi * block;
-                let len = block.min(m - r0);
-                if t.nrows() != len {
-                    t = Mat::zeros(len, n);
-                    su = Mat::zeros(len, k);
-                }
-                let ur = u.subrows(r0, len);
-                matmul(t.as_mut(), Accum::Replace, ur, v.transpose(), 1.0, Par::Seq);
-                value += soft_abs_in_place(&mut t, xi);
-                matmul(su.as_mut(), Accum::Replace, t.as_ref(), v.as_ref(), 1.0, Par::Seq);
-                matmul(ga.as_mut(), Accum::Add, psi.subrows(r0, len).transpose(), su.as_ref(), 1.0, Par::Seq);
-                matmul(sv.as_mut(), Accum::Add, t.transpose(), ur, 1.0, Par::Seq);
-            }
-            (value, ga, sv)
-        })
-        .collect();
-    let mut value = 0.0;
-    let mut grad_a = Mat::<f64>::zeros(kp, k);
-    let mut st_u = Mat::<f64>::zeros(n, k);
-    for (v, ga, sv) in &partials {
-        value += v;
-        grad_a += ga;
-        st_u += sv;
+    let (kp, k) = (a.nrows(), a.ncols());
+    if kp < 2 * k {
+        let r = soft_l1(u.as_ref(), v.as_ref(), xi, weights, block_rows, Products::Projected { psi, phi });
+        let z = r.projected.expect("requested");
+        chain_c(r.value, z.as_ref(), a, b)
+    } else {
+        let r = soft_l1(
+            u.as_ref(),
+            v.as_ref(),
+            xi,
+            weights,
+            block_rows,
+            Products::Factored { pu: u.as_ref(), pv: v.as_ref() },
+        );
+        let grad_a = gemm_tn(psi, r.s_pv.expect("requested").as_ref());
+        let grad_b = gemm_tn(phi, r.st_pu.expect("requested").as_ref());
+        TermValue { value: r.value, grad_a, grad_b }
     }
-    drop(partials);
-    let grad_b = gemm_tn(phi, st_u.as_ref());
-    TermValue { value, grad_a, grad_b }
+}
+
+/// Z = ∂/∂C (k' × k') of the L1 term at C = A Bᵀ, with its value: Ψᵀ S Φ.
+pub fn l1_c(
+    a: MatRef<f64>,
+    b: MatRef<f64>,
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    xi: f64,
+    weights: Option<Weights>,
+    block_rows: usize,
+) -> (f64, Mat<f64>) {
+    let u = gemm_nn(psi, a);
+    let v = gemm_nn(phi, b);
+    let r = soft_l1(u.as_ref(), v.as_ref(), xi, weights, block_rows, Products::Projected { psi, phi });
+    (r.value, r.projected.expect("requested"))
 }
 
 /// The value of [`l1`] alone (2·m·n·k flops), for line searches and reports.
-pub fn l1_value(a: MatRef<f64>, b: MatRef<f64>, phi: MatRef<f64>, psi: MatRef<f64>, xi: f64, block_rows: usize) -> f64 {
+pub fn l1_value(
+    a: MatRef<f64>,
+    b: MatRef<f64>,
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    xi: f64,
+    weights: Option<Weights>,
+    block_rows: usize,
+) -> f64 {
     let u = gemm_nn(psi, a);
     let v = gemm_nn(phi, b);
-    let (m, n) = (u.nrows(), v.nrows());
-    let block = block_rows.max(1);
-    let (_, ranges) = block_groups(m, block);
-    let partials: Vec<f64> = ranges
-        .par_iter()
-        .map(|range| {
-            let mut value = 0.0;
-            let mut t = Mat::<f64>::zeros(0, 0);
-            for bi in range.clone() {
-                let r0 = bi * block;
-                let len = block.min(m - r0);
-                if t.nrows() != len {
-                    t = Mat::zeros(len, n);
-                }
-                matmul(t.as_mut(), Accum::Replace, u.subrows(r0, len), v.transpose(), 1.0, Par::Seq);
-                value += soft_abs_sum(&t, xi);
-            }
-            value
-        })
-        .collect();
-    partials.iter().sum()
+    soft_l1(u.as_ref(), v.as_ref(), xi, weights, block_rows, Products::Value).value
 }
 
 #[cfg(test)]
@@ -392,44 +290,35 @@ mod tests {
     }
 
     #[test]
-    fn elementwise_kernels_agree_with_the_generic_code() {
-        let t0 = randn(13, 7, 600) * 0.05;
-        let (mut t1, mut t2) = (t0.clone(), t0.clone());
-        let v1 = soft_abs_in_place(&mut t1, 1e-3);
-        let v2 = soft_abs_in_place_generic(&mut t2, 1e-3);
-        assert_eq!(v1, v2);
-        assert_eq!(t1, t2);
-        assert_eq!(soft_abs_sum(&t0, 1e-3), v1);
-        assert_eq!(soft_abs_sum_generic(&t0, 1e-3), v1);
-        let direct: f64 = (0..7).map(|j| (0..13).map(|i| (t0[(i, j)].powi(2) + 1e-3).sqrt()).sum::<f64>()).sum();
-        assert!((v1 - direct).abs() < 1e-13 * direct);
-        assert!((t1[(3, 2)] - t0[(3, 2)] / (t0[(3, 2)].powi(2) + 1e-3).sqrt()).abs() < 1e-15);
-    }
-
-    #[test]
     fn l1_gradient_value_and_blocking() {
         // Scaled so that entries of T are of order √ξ and larger: both regimes of √(t² + ξ).
         let phi = randn(N, KP, 500) * 0.1;
         let psi = randn(M, KP, 501) * 0.1;
         for block in [7, 16, 512] {
-            fd_check(&|a, b| l1(a, b, phi.as_ref(), psi.as_ref(), 1e-3, block), 8);
+            fd_check(&|a, b| l1(a, b, phi.as_ref(), psi.as_ref(), 1e-3, None, block), 8);
         }
         let (a, b) = (randn(KP, K, 15), randn(KP, K, 16));
         let reference = l1_dense(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3);
-        let full = l1(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, 7);
-        let single = l1(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, 1000);
-        for v in [full.value, single.value, l1_value(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, 7)] {
+        let full = l1(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, None, 7);
+        let single = l1(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, None, 1000);
+        for v in [full.value, single.value, l1_value(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, None, 7)]
+        {
             assert!((v - reference).abs() < 1e-12 * reference, "{v} vs {reference}");
         }
         // Block size changes only the summation order.
         let d = (&full.grad_a - &single.grad_a).norm_l2() + (&full.grad_b - &single.grad_b).norm_l2();
         assert!(d < 1e-12 * (full.grad_a.norm_l2() + full.grad_b.norm_l2()));
-        // Explicit gradient formulas ∇_A = Ψᵀ S Φ B, ∇_B = Φᵀ Sᵀ Ψ A on the dense T.
-        let t = mul(mul(psi.as_ref(), a.as_ref()).as_ref(), mul(phi.as_ref(), b.as_ref()).transpose());
-        let s = Mat::from_fn(M, N, |i, j| t[(i, j)] / (t[(i, j)].powi(2) + 1e-3).sqrt());
-        let ga = mul(mul(psi.transpose(), s.as_ref()).as_ref(), mul(phi.as_ref(), b.as_ref()).as_ref());
-        let gb = mul(mul(phi.transpose(), s.transpose()).as_ref(), mul(psi.as_ref(), a.as_ref()).as_ref());
-        assert!((&ga - &full.grad_a).norm_l2() < 1e-10 * ga.norm_l2());
-        assert!((&gb - &full.grad_b).norm_l2() < 1e-10 * gb.norm_l2());
+        // Explicit gradient formulas ∇_A = Ψᵀ S Φ B, ∇_B = Φᵀ Sᵀ Ψ A on the dense T, for both
+        // code paths: k' < 2k (Z = Ψᵀ S Φ accumulated) and k' ≥ 2k (S V and Sᵀ U accumulated).
+        for k in [K, 3] {
+            let (a, b) = (randn(KP, k, 15), randn(KP, k, 16));
+            let got = l1(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, None, 7);
+            let t = mul(mul(psi.as_ref(), a.as_ref()).as_ref(), mul(phi.as_ref(), b.as_ref()).transpose());
+            let s = Mat::from_fn(M, N, |i, j| t[(i, j)] / (t[(i, j)].powi(2) + 1e-3).sqrt());
+            let ga = mul(mul(psi.transpose(), s.as_ref()).as_ref(), mul(phi.as_ref(), b.as_ref()).as_ref());
+            let gb = mul(mul(phi.transpose(), s.transpose()).as_ref(), mul(psi.as_ref(), a.as_ref()).as_ref());
+            assert!((&ga - &got.grad_a).norm_l2() < 1e-10 * ga.norm_l2(), "k = {k}");
+            assert!((&gb - &got.grad_b).norm_l2() < 1e-10 * gb.norm_l2(), "k = {k}");
+        }
     }
 }
