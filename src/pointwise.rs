@@ -23,6 +23,20 @@ const QUERY_BLOCK: usize = 256;
 /// exact in any dimension (the embeddings here have d = k up to hundreds, where k-d trees
 /// degenerate to scanning anyway).
 pub fn nearest_neighbors(reference: MatRef<f64>, query: MatRef<f64>) -> Result<Vec<usize>> {
+    best_rows(reference, query, true)
+}
+
+/// Maximum inner product search: for every row of `query` (n × d) the index of the row of
+/// `reference` (m × d) with the largest inner product; ties go to the smallest index. For
+/// factors T = L Rᵀ (L: m × k, R: n × k) of a correspondence, `max_inner_product(L, R)` is the
+/// argmax of every column of T, computed in blocks without forming T (blocked GEMM as in
+/// [`nearest_neighbors`]).
+pub fn max_inner_product(reference: MatRef<f64>, query: MatRef<f64>) -> Result<Vec<usize>> {
+    best_rows(reference, query, false)
+}
+
+/// argmin_j (‖r_j‖² − 2 q·r_j) (`euclidean`) or argmax_j q·r_j for every query row.
+fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Result<Vec<usize>> {
     let (m, d) = (reference.nrows(), reference.ncols());
     if query.ncols() != d {
         return Err(Error::invalid(
@@ -37,7 +51,11 @@ pub fn nearest_neighbors(reference: MatRef<f64>, query: MatRef<f64>) -> Result<V
     if !finite(reference) || !finite(query) {
         return Err(Error::invalid("embedding", "it contains a non-finite value"));
     }
-    let ref_norm: Vec<f64> = (0..m).map(|j| (0..d).map(|c| reference[(j, c)].powi(2)).sum()).collect();
+    let ref_norm: Vec<f64> = if euclidean {
+        (0..m).map(|j| (0..d).map(|c| reference[(j, c)].powi(2)).sum()).collect()
+    } else {
+        vec![0.0; m]
+    };
     let n = query.nrows();
     let starts: Vec<usize> = (0..n).step_by(QUERY_BLOCK).collect();
     let blocks: Vec<Vec<usize>> = starts
@@ -207,6 +225,12 @@ mod tests {
             let dist = |j: usize| (0..d).map(|c| (q[(i, c)] - r[(j, c)]).powi(2)).sum::<f64>();
             let want = (0..m).min_by(|&a, &b| dist(a).total_cmp(&dist(b))).unwrap();
             assert_eq!(got[i], want, "query {i}");
+        }
+        let mip = max_inner_product(r.as_ref(), q.as_ref()).unwrap();
+        for i in 0..n {
+            let dot = |j: usize| (0..d).map(|c| q[(i, c)] * r[(j, c)]).sum::<f64>();
+            let want = (0..m).max_by(|&a, &b| dot(a).total_cmp(&dot(b)).then(b.cmp(&a))).unwrap();
+            assert_eq!(mip[i], want, "query {i}");
         }
         // A point of the reference set finds itself.
         let self_map = nearest_neighbors(r.as_ref(), r.as_ref()).unwrap();

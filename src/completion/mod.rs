@@ -33,15 +33,20 @@
 //! Modules: [`terms`] (each term with its gradient), [`objective`] (their weighted sum),
 //! [`optimize`](mod@optimize) (L-BFGS with a strong-Wolfe line search, initializations).
 
+pub mod convex;
+pub mod fixed_rank;
+pub mod full;
 pub mod l1;
 pub mod lbfgs;
 pub mod objective;
 pub mod optimize;
+pub mod solve;
 pub mod terms;
 
 pub use objective::{evaluate, value, CompletionParams, Evaluation, LowNorm, Terms};
 // Scaling is defined below.
 pub use optimize::{init_from_c, init_from_svd, optimize, CompletionReport, OptimizeOptions};
+pub use solve::{solve, CompletionOptions, Form, Init, Optimizer, Solution};
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};

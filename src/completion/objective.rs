@@ -56,6 +56,46 @@ impl Default for CompletionParams {
     }
 }
 
+impl CompletionParams {
+    /// The default weights of a [`Scaling`]: the paper's for [`Scaling::Paper`]; for
+    /// [`Scaling::Unit`], weights chosen on the faust_r development pairs (EXPERIMENTS.md).
+    pub fn defaults_for(scaling: Scaling) -> Self {
+        match scaling {
+            Scaling::Paper => CompletionParams::default(),
+            Scaling::Unit => CompletionParams {
+                mu1: 1e-2,
+                mu2: 1e-2,
+                mu3: 1e-2,
+                mu4: 1e-3,
+                xi: 1e-2,
+                low_norm: LowNorm::Mass,
+                ..CompletionParams::default()
+            },
+        }
+    }
+
+    /// Errors when a weight is negative or not finite, ξ < 0, or the block size is 0.
+    pub fn validate(&self) -> crate::Result<()> {
+        let named = [
+            ("mu1", self.mu1),
+            ("mu2", self.mu2),
+            ("mu3", self.mu3),
+            ("mu4", self.mu4),
+            ("xi", self.xi),
+            ("commutativity", self.mu_comm),
+        ];
+        for (name, v) in named {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(crate::Error::invalid(name, format!("must be finite and ≥ 0, got {v}")));
+            }
+        }
+        if self.block_rows == 0 {
+            return Err(crate::Error::invalid("block rows", "must be at least 1"));
+        }
+        Ok(())
+    }
+}
+
 /// Weighted values of the terms of (11) at one point, and their sum.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Terms {
@@ -166,6 +206,44 @@ pub fn evaluate(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b:
     Evaluation { terms, grad_a, grad_b }
 }
 
+/// The terms of the objective at C = A Bᵀ that depend on C alone (all but the low norm,
+/// which is left at 0) and their gradient Z = ∂f/∂C (k' × k'), for solvers that work on C
+/// directly (the fixed-rank form, [`super::fixed_rank`]).
+pub fn gradient_c(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b: MatRef<f64>) -> (Terms, Mat<f64>) {
+    check_shapes(problem, a, b);
+    let c = super::mul(a, b.transpose());
+    let (data, mut z) = terms::data_c(c.as_ref(), problem.f_hat.as_ref(), problem.g_hat.as_ref());
+    let mut t = Terms { data, ..Terms::default() };
+    let mut add = |w: f64, (value, g): (f64, Mat<f64>)| -> f64 {
+        z += &g * w;
+        w * value
+    };
+    if params.mu1 != 0.0 {
+        t.dirichlet_x = add(params.mu1, terms::dirichlet_x_c(c.as_ref(), &problem.lambda_x));
+    }
+    if params.mu2 != 0.0 {
+        t.dirichlet_y = add(params.mu2, terms::dirichlet_y_c(c.as_ref(), &problem.lambda_y));
+    }
+    if params.mu_comm != 0.0 {
+        let (lx, ly, kc) = comm_setup(problem, params);
+        t.commutativity = add(params.mu_comm, terms::commutativity_c(c.as_ref(), &lx, &ly, kc));
+    }
+    if params.mu3 != 0.0 {
+        let l1 = terms::l1_c(
+            a,
+            b,
+            problem.phi.as_ref(),
+            problem.psi.as_ref(),
+            params.xi,
+            problem.l1_weights(),
+            params.block_rows,
+        );
+        t.l1 = add(params.mu3, l1);
+    }
+    t.total = t.data + t.dirichlet_x + t.dirichlet_y + t.l1 + t.commutativity;
+    (t, z)
+}
+
 /// The weighted terms of the objective at (A, B) without gradients (the L1 term costs 2·m·n·k
 /// flops instead of 6·m·n·k).
 pub fn value(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b: MatRef<f64>) -> Terms {
@@ -203,7 +281,7 @@ pub fn value(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b: Ma
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::completion::testutil::{dot, randn};
 

@@ -25,49 +25,56 @@ fn chain_c(value: f64, g: MatRef<f64>, a: MatRef<f64>, b: MatRef<f64>) -> TermVa
     TermValue { value, grad_a: mul(g, b), grad_b: mul(g.transpose(), a) }
 }
 
-/// Data term of (11): ‖A Bᵀ Â − B̂‖²_F with Â = Φ_k'ᵀ A_X F, B̂ = Ψ_k'ᵀ A_Y G (k' × q), the
-/// mass-weighted coefficients of the data (see the module documentation of
-/// [`crate::completion`] for this mass placement).
-///
-/// With R = A Bᵀ Â − B̂: ∇_A = 2 R Âᵀ B, ∇_B = 2 Â Rᵀ A.
-pub fn data(a: MatRef<f64>, b: MatRef<f64>, f_hat: MatRef<f64>, g_hat: MatRef<f64>) -> TermValue {
-    let btf = mul(b.transpose(), f_hat); // k × q
-    let mut r = mul(a, btf.as_ref()); // k' × q
+/// Data term of (11) as a function of C (k' × k'): ‖C Â − B̂‖²_F with Â = Φ_k'ᵀ A_X F,
+/// B̂ = Ψ_k'ᵀ A_Y G (k' × q), the mass-weighted coefficients of the data (see the module
+/// documentation of [`crate::completion`] for this mass placement). Returns the value and
+/// ∂/∂C = 2 R Âᵀ with R = C Â − B̂.
+pub fn data_c(c: MatRef<f64>, f_hat: MatRef<f64>, g_hat: MatRef<f64>) -> (f64, Mat<f64>) {
+    let mut r = mul(c, f_hat);
     r -= g_hat;
-    let value = r.squared_norm_l2();
-    // ∂/∂C of ‖C Â − B̂‖² is 2 R Âᵀ.
-    let g = mul(r.as_ref(), f_hat.transpose()) * 2.0;
+    (r.squared_norm_l2(), mul(r.as_ref(), f_hat.transpose()) * 2.0)
+}
+
+/// [`data_c`] at C = A Bᵀ with gradients ∇_A = 2 R Âᵀ B, ∇_B = 2 Â Rᵀ A.
+pub fn data(a: MatRef<f64>, b: MatRef<f64>, f_hat: MatRef<f64>, g_hat: MatRef<f64>) -> TermValue {
+    let (value, g) = data_c(mul(a, b.transpose()).as_ref(), f_hat, g_hat);
     chain_c(value, g.as_ref(), a, b)
 }
 
-/// Dirichlet energy on X of (11): tr(A Bᵀ Λ_X B Aᵀ) = Σ_ij C_ij² λ^X_j with C = A Bᵀ.
-///
-/// ∂/∂C = 2 C Λ_X, so ∇_A = 2 C Λ_X B and ∇_B = 2 Λ_X Cᵀ A.
-pub fn dirichlet_x(a: MatRef<f64>, b: MatRef<f64>, lambda_x: &[f64]) -> TermValue {
-    let c = mul(a, b.transpose());
+/// Dirichlet energy on X of (11) as a function of C: tr(C Λ_X Cᵀ) = Σ_ij C_ij² λ^X_j
+/// (= tr(A Bᵀ Λ_X B Aᵀ) for C = A Bᵀ); ∂/∂C = 2 C Λ_X.
+pub fn dirichlet_x_c(c: MatRef<f64>, lambda_x: &[f64]) -> (f64, Mat<f64>) {
     let g = Mat::from_fn(c.nrows(), c.ncols(), |i, j| 2.0 * c[(i, j)] * lambda_x[j]);
     let value = 0.5 * (0..c.ncols()).map(|j| (0..c.nrows()).map(|i| g[(i, j)] * c[(i, j)]).sum::<f64>()).sum::<f64>();
+    (value, g)
+}
+
+/// [`dirichlet_x_c`] at C = A Bᵀ: ∇_A = 2 C Λ_X B, ∇_B = 2 Λ_X Cᵀ A.
+pub fn dirichlet_x(a: MatRef<f64>, b: MatRef<f64>, lambda_x: &[f64]) -> TermValue {
+    let (value, g) = dirichlet_x_c(mul(a, b.transpose()).as_ref(), lambda_x);
     chain_c(value, g.as_ref(), a, b)
 }
 
-/// Dirichlet energy on Y of (11): tr(B Aᵀ Λ_Y A Bᵀ) = Σ_ij λ^Y_i C_ij² with C = A Bᵀ.
-///
-/// ∂/∂C = 2 Λ_Y C, so ∇_A = 2 Λ_Y C B and ∇_B = 2 Cᵀ Λ_Y A.
-pub fn dirichlet_y(a: MatRef<f64>, b: MatRef<f64>, lambda_y: &[f64]) -> TermValue {
-    let c = mul(a, b.transpose());
+/// Dirichlet energy on Y of (11) as a function of C: tr(Cᵀ Λ_Y C) = Σ_ij λ^Y_i C_ij²
+/// (= tr(B Aᵀ Λ_Y A Bᵀ) for C = A Bᵀ); ∂/∂C = 2 Λ_Y C.
+pub fn dirichlet_y_c(c: MatRef<f64>, lambda_y: &[f64]) -> (f64, Mat<f64>) {
     let g = Mat::from_fn(c.nrows(), c.ncols(), |i, j| 2.0 * lambda_y[i] * c[(i, j)]);
     let value = 0.5 * (0..c.ncols()).map(|j| (0..c.nrows()).map(|i| g[(i, j)] * c[(i, j)]).sum::<f64>()).sum::<f64>();
+    (value, g)
+}
+
+/// [`dirichlet_y_c`] at C = A Bᵀ: ∇_A = 2 Λ_Y C B, ∇_B = 2 Cᵀ Λ_Y A.
+pub fn dirichlet_y(a: MatRef<f64>, b: MatRef<f64>, lambda_y: &[f64]) -> TermValue {
+    let (value, g) = dirichlet_y_c(mul(a, b.transpose()).as_ref(), lambda_y);
     chain_c(value, g.as_ref(), a, b)
 }
 
 /// Optional Laplacian-commutativity term (Ovsjanikov et al. 2012), not part of the paper's (11):
 /// ‖C_c Λ_X − Λ_Y C_c‖²_F = Σ_{i,j<k_c} (λ^X_j − λ^Y_i)² C_ij², on the leading k_c × k_c block
-/// C_c of C = A Bᵀ. Pure (11) does not reward near-isometric maps; this term does.
-///
+/// C_c of C. Pure (11) does not reward near-isometric maps; this term does.
 /// ∂/∂C_ij = 2 (λ^X_j − λ^Y_i)² C_ij inside the block, 0 outside.
-pub fn commutativity(a: MatRef<f64>, b: MatRef<f64>, lambda_x: &[f64], lambda_y: &[f64], k_c: usize) -> TermValue {
-    let c = mul(a, b.transpose());
-    let kc = k_c.min(c.nrows());
+pub fn commutativity_c(c: MatRef<f64>, lambda_x: &[f64], lambda_y: &[f64], k_c: usize) -> (f64, Mat<f64>) {
+    let kc = k_c.min(c.nrows()).min(c.ncols());
     let mut value = 0.0;
     let g = Mat::from_fn(c.nrows(), c.ncols(), |i, j| {
         if i < kc && j < kc {
@@ -78,6 +85,12 @@ pub fn commutativity(a: MatRef<f64>, b: MatRef<f64>, lambda_x: &[f64], lambda_y:
             0.0
         }
     });
+    (value, g)
+}
+
+/// [`commutativity_c`] at C = A Bᵀ, with gradients by the chain rule.
+pub fn commutativity(a: MatRef<f64>, b: MatRef<f64>, lambda_x: &[f64], lambda_y: &[f64], k_c: usize) -> TermValue {
+    let (value, g) = commutativity_c(mul(a, b.transpose()).as_ref(), lambda_x, lambda_y, k_c);
     chain_c(value, g.as_ref(), a, b)
 }
 

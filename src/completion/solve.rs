@@ -1,0 +1,451 @@
+//! One entry point for every form of the method: [`solve`] builds the problem of the chosen
+//! [`Form`], initializes it from a functional map (the paper's two initializations, §3.3),
+//! runs its optimizer and returns the correspondence in factored form.
+
+use faer::{Mat, MatRef};
+use serde::{Deserialize, Serialize};
+
+use super::convex::{self, AdmmOptions};
+use super::fixed_rank::{self, FullRank, RankPoint, SubspaceRank};
+use super::full::{low_norm_objective, metric, FullProblem};
+use super::lbfgs;
+use super::objective::CompletionParams;
+use super::optimize::{init_from_c, init_from_svd, optimize, CompletionReport, OptimizeOptions};
+use super::{gemm_nn, gemm_tn, mul, Problem, Scaling};
+use crate::descriptors::Descriptors;
+use crate::error::{Error, Result};
+use crate::laplacian::Laplacian;
+use crate::spectral::Basis;
+
+/// Which problem of the paper's §3 to solve.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Form {
+    /// (11): T = Ψ_k' A Bᵀ Φ_k'ᵀ with A, B (k' × k); 2·k·k' variables whatever the mesh size.
+    #[default]
+    Subspace,
+    /// (8): T = U Vᵀ of fixed rank k on the vertices (U: m × k, V: n × k).
+    FixedRank,
+    /// (9): convex, nuclear norm on the whole m × n T (small shapes, [`convex::MAX_ENTRIES`]).
+    LowRank,
+    /// (10): T = U Vᵀ with the low-norm penalty ½ (‖U‖² + ‖V‖²), on the vertices.
+    LowNorm,
+}
+
+/// How the start is built from a functional map C₀.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Init {
+    /// A = C₀ zero-padded to k' × k, B = I (paper §3.3, first option).
+    #[default]
+    Pad,
+    /// A = U_k Σ_k^{1/2}, B = V_k Σ_k^{1/2} from the SVD of C₀ (paper §3.3, second option).
+    Svd,
+}
+
+/// The optimizer of the subspace and fixed-rank forms.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Optimizer {
+    /// L-BFGS on the factors (A, B) or (U, V).
+    Lbfgs,
+    /// Riemannian conjugate gradients on the manifold of rank-k matrices (manopt-like; C for
+    /// the subspace form, T for the fixed-rank form). The low-norm weight μ4 must be 0.
+    Rcg,
+}
+
+/// Everything [`solve`] needs besides the data.
+#[derive(Clone, Debug, Serialize)]
+pub struct CompletionOptions {
+    /// The form.
+    pub form: Form,
+    /// The normalization of the terms.
+    pub scaling: Scaling,
+    /// The weights μ1…μ4, ξ, optional commutativity.
+    pub params: CompletionParams,
+    /// k', the subspace size (and the Dirichlet normalization's K for the vertex forms).
+    pub k_prime: usize,
+    /// k, the rank.
+    pub k: usize,
+    /// The initialization.
+    pub init: Init,
+    /// The optimizer; `None`: L-BFGS for (11) and (10), RCG for (8).
+    pub optimizer: Option<Optimizer>,
+    /// Options of the smooth optimizers.
+    pub optimize: OptimizeOptions,
+    /// Options of the ADMM of (9).
+    pub admm: AdmmOptions,
+}
+
+impl CompletionOptions {
+    /// The paper's settings for scarce data (k' = 350, k = 250) or rich data (k' = 50, k = 30),
+    /// with the given scaling's default weights.
+    pub fn paper(rich: bool, scaling: Scaling) -> Self {
+        let (k_prime, k) = if rich { (50, 30) } else { (350, 250) };
+        CompletionOptions {
+            form: Form::Subspace,
+            scaling,
+            params: CompletionParams::defaults_for(scaling),
+            k_prime,
+            k,
+            init: Init::Pad,
+            optimizer: None,
+            optimize: OptimizeOptions::default(),
+            admm: AdmmOptions::default(),
+        }
+    }
+}
+
+/// A solution: the correspondence kernel T = L Rᵀ (m × n, in the problem's units) in factored
+/// form, the functional map between the input bases, and what the optimizer did.
+#[derive(Clone, Debug)]
+pub struct Solution {
+    /// L (m × r): rows are the embedding of the vertices of Y (Ψ̃ A for the subspace form).
+    pub left: Mat<f64>,
+    /// R (n × r): rows are the embedding of the vertices of X (Φ̃ B).
+    pub right: Mat<f64>,
+    /// The functional map C (k' × k') between the input bases (mass-orthonormal), T = Ψ C Φᵀ
+    /// projected on the first k' eigenfunctions: the start of ICP or ZoomOut.
+    pub c: Mat<f64>,
+    /// (A, B) (k' × k) for the subspace form, in the problem's units.
+    pub coefficients: Option<(Mat<f64>, Mat<f64>)>,
+    /// The optimizer's report (iterations, terms, times) as JSON.
+    pub report: serde_json::Value,
+    /// The final objective.
+    pub objective: f64,
+}
+
+/// (s Φ)ᵀ diag(w) X: coefficients in a scaled basis of the columns of X (n × r).
+fn coefficients_of(basis: &Basis, kp: usize, scale: f64, w: &[f64], x: MatRef<f64>) -> Mat<f64> {
+    let wx = Mat::from_fn(x.nrows(), x.ncols(), |i, j| w[i] * x[(i, j)]);
+    gemm_tn(basis.eigenvectors.subcols(0, kp), wx.as_ref()) * faer::Scale(scale)
+}
+
+fn check_options(o: &CompletionOptions, bx: &Basis, by: &Basis) -> Result<()> {
+    if o.k == 0 || o.k > o.k_prime {
+        return Err(Error::invalid("k", format!("the rank k = {} must be between 1 and k' = {}", o.k, o.k_prime)));
+    }
+    if o.k_prime >= bx.n() || o.k_prime >= by.n() {
+        return Err(Error::invalid(
+            "k'",
+            format!("k' = {} must be below the vertex counts ({} and {})", o.k_prime, bx.n(), by.n()),
+        ));
+    }
+    o.params.validate()?;
+    if o.params.mu3 > 0.0 && o.params.xi == 0.0 && o.form != Form::LowRank {
+        return Err(Error::invalid("xi", "ξ = 0 makes the L1 term non-smooth; only the convex form (9) accepts it"));
+    }
+    if o.optimizer == Some(Optimizer::Rcg) && o.params.mu4 != 0.0 {
+        return Err(Error::invalid("mu4", "the fixed-rank (RCG) solver has no low-norm term: set μ4 = 0"));
+    }
+    if o.optimizer == Some(Optimizer::Rcg) && matches!(o.form, Form::LowNorm | Form::LowRank) {
+        return Err(Error::invalid("optimizer", "RCG solves the fixed-rank and subspace forms only"));
+    }
+    Ok(())
+}
+
+/// Solves the chosen form for shapes with bases `bx` (X, n vertices), `by` (Y, m) and data F
+/// (n × q), G (m × q), starting from the functional map `c0` (r × c between the input bases, e.g.
+/// Ovsjanikov's; r, c ≤ k'). The vertex forms (8)–(10) also need the Laplacians.
+///
+/// Errors: bad sizes or parameters (k > k', k' ≥ vertex count, F and G with different column
+/// counts, negative weights, missing Laplacians for the vertex forms), a non-finite objective.
+#[allow(clippy::too_many_arguments)]
+pub fn solve(
+    bx: &Basis,
+    by: &Basis,
+    laplacians: Option<(&Laplacian, &Laplacian)>,
+    f: &Descriptors,
+    g: &Descriptors,
+    c0: MatRef<f64>,
+    opts: &CompletionOptions,
+) -> Result<Solution> {
+    check_options(opts, bx, by)?;
+    let (kp, k) = (opts.k_prime, opts.k);
+    let sub = Problem::new(bx, by, f, g, kp, opts.scaling)?;
+    let c0 = sub.c_from_bases(c0);
+    let (a0, b0) = match opts.init {
+        Init::Pad => init_from_c(c0.as_ref(), kp, k)?,
+        Init::Svd => init_from_svd(c0.as_ref(), kp, k)?,
+    };
+    let optimizer =
+        opts.optimizer.unwrap_or(if opts.form == Form::FixedRank { Optimizer::Rcg } else { Optimizer::Lbfgs });
+    let params = &opts.params;
+    if opts.form == Form::Subspace {
+        let (a, b, report, objective) = match optimizer {
+            Optimizer::Lbfgs => {
+                let (a, b, r) = optimize(&sub, params, &opts.optimize, a0.as_ref(), b0.as_ref())?;
+                let obj = r.terms.total;
+                (a, b, serde_json::to_value(&r).expect("plain report"), obj)
+            }
+            Optimizer::Rcg => {
+                let obj = SubspaceRank { problem: &sub, params: params.clone() };
+                let x0 = rank_start(a0.as_ref(), b0.as_ref(), k)?;
+                let (x, r) = fixed_rank::minimize(&obj, x0, &opts.optimize)?;
+                let (a, b) = x.balanced();
+                let o = r.terms.total;
+                (a, b, serde_json::to_value(&r).expect("plain report"), o)
+            }
+        };
+        let left = gemm_nn(sub.psi.as_ref(), a.as_ref());
+        let right = gemm_nn(sub.phi.as_ref(), b.as_ref());
+        let c = sub.c_to_bases(mul(a.as_ref(), b.transpose()).as_ref());
+        return Ok(Solution { left, right, c, coefficients: Some((a, b)), report, objective });
+    }
+    let Some((lx, ly)) = laplacians else {
+        return Err(Error::invalid("form", "the vertex-space forms (8)–(10) need the Laplacians of both shapes"));
+    };
+    let full = FullProblem::new(lx, ly, bx, by, f, g, kp, opts.scaling)?;
+    let (u0, v0) = full.factors_from_subspace(bx, by, a0.as_ref(), b0.as_ref());
+    let (left, right, report, objective) = match (opts.form, optimizer) {
+        (Form::FixedRank, Optimizer::Rcg) => {
+            let obj = FullRank::new(&full, params.clone());
+            let (us, vs) = obj.scale(u0.as_ref(), v0.as_ref());
+            let (x, r) = fixed_rank::minimize(&obj, rank_start(us.as_ref(), vs.as_ref(), k)?, &opts.optimize)?;
+            let (ls, rs) = x.balanced();
+            let (l, rr) = obj.unscale(ls.as_ref(), rs.as_ref());
+            let o = r.terms.total;
+            (l, rr, serde_json::to_value(&r).expect("plain report"), o)
+        }
+        (Form::FixedRank | Form::LowNorm, Optimizer::Lbfgs) => {
+            let p = if opts.form == Form::FixedRank {
+                CompletionParams { mu4: 0.0, ..params.clone() }
+            } else {
+                params.clone()
+            };
+            let (mut l, mut r, rep) = low_norm(&full, &p, &opts.optimize, u0.as_ref(), v0.as_ref())?;
+            if opts.form == Form::FixedRank {
+                // Without the low norm the factors are defined up to U M, V M⁻ᵀ: balance them
+                // (as the RCG result, through the SVD of the scaled kernel) so that the
+                // embeddings are canonical.
+                let obj = FullRank::new(&full, p.clone());
+                let (ls, rs) = obj.scale(l.as_ref(), r.as_ref());
+                let (lb, rb) = RankPoint::from_factors(ls.as_ref(), rs.as_ref(), k)?.balanced();
+                (l, r) = obj.unscale(lb.as_ref(), rb.as_ref());
+            }
+            let o = rep.terms.total;
+            (l, r, serde_json::to_value(&rep).expect("plain report"), o)
+        }
+        (Form::LowRank, _) => {
+            let t0 = mul(u0.as_ref(), v0.transpose());
+            let (t, rep) = convex::solve(&full, params, &opts.admm, t0.as_ref(), k)?;
+            let (l, r) = factor_dense(t.as_ref(), kp)?;
+            let o = rep.terms.total;
+            (l, r, serde_json::to_value(&rep).expect("plain report"), o)
+        }
+        _ => return Err(Error::invalid("optimizer", "this form cannot use that optimizer")),
+    };
+    // C between the input bases: Ψ̃ᵀ Ã_Y L (Φ̃ᵀ Ã_X R)ᵀ, times c_scale.
+    let cy = coefficients_of(by, kp, full.basis_scale_y, &full.mass_y, left.as_ref());
+    let cx = coefficients_of(bx, kp, full.basis_scale_x, &full.mass_x, right.as_ref());
+    let c = mul(cy.as_ref(), cx.transpose()) * faer::Scale(full.c_scale);
+    Ok(Solution { left, right, c, coefficients: None, report, objective })
+}
+
+/// A rank-k manifold point from factors, with singular values floored at 1e-8 σ₁ so that a
+/// start of lower rank (e.g. a zero-padded k₀ × k₀ map, k₀ < k) lies on the manifold.
+fn rank_start(l: MatRef<f64>, r: MatRef<f64>, k: usize) -> Result<RankPoint> {
+    let mut x = RankPoint::from_factors(l, r, k)?;
+    let floor = 1e-8 * x.s.first().copied().unwrap_or(0.0).max(1e-300);
+    for s in &mut x.s {
+        *s = s.max(floor);
+    }
+    Ok(x)
+}
+
+/// Balanced factors of a dense T (m × n) from its SVD, truncated to at most `max_rank` singular
+/// values above 1e-12 σ₁.
+fn factor_dense(t: MatRef<f64>, max_rank: usize) -> Result<(Mat<f64>, Mat<f64>)> {
+    let svd = t.thin_svd().map_err(|e| Error::numerical("low rank", format!("SVD failed: {e:?}")))?;
+    let s = svd.S();
+    let s1 = s[0].max(1e-300);
+    let r = (0..s.column_vector().nrows()).take(max_rank).take_while(|&i| s[i] > 1e-12 * s1).count().max(1);
+    let l = Mat::from_fn(t.nrows(), r, |i, j| svd.U()[(i, j)] * s[j].sqrt());
+    let rr = Mat::from_fn(t.ncols(), r, |i, j| svd.V()[(i, j)] * s[j].sqrt());
+    Ok((l, rr))
+}
+
+/// The low-norm form (10) (or the factored fixed-rank form with μ4 = 0) by L-BFGS on (U, V)
+/// from (`u0`: m × k, `v0`: n × k).
+pub fn low_norm(
+    problem: &FullProblem,
+    params: &CompletionParams,
+    opts: &OptimizeOptions,
+    u0: MatRef<f64>,
+    v0: MatRef<f64>,
+) -> Result<(Mat<f64>, Mat<f64>, CompletionReport)> {
+    let (m, n, k) = (problem.m(), problem.n(), u0.ncols());
+    if u0.nrows() != m || v0.nrows() != n || v0.ncols() != k || k == 0 {
+        return Err(Error::invalid(
+            "initialization",
+            format!("U is {}×{} and V {}×{}; they must be {m}×k and {n}×k", u0.nrows(), k, v0.nrows(), v0.ncols()),
+        ));
+    }
+    // Optimize over the scaled factors A_Y^{1/2} U, A_X^{1/2} V (see `full::metric`).
+    let (dy, dx) = metric(problem);
+    let mut x0 = Vec::with_capacity((m + n) * k);
+    for (mat, d) in [(u0, &dy), (v0, &dx)] {
+        for j in 0..k {
+            x0.extend((0..mat.nrows()).map(|i| d[i] * mat[(i, j)]));
+        }
+    }
+    let mut eval = |x: &[f64]| low_norm_objective(problem, params, (&dy, &dx), x, k);
+    let out = lbfgs::minimize(x0, opts, &mut eval)?;
+    let u = Mat::from_fn(m, k, |i, j| out.x[j * m + i] / dy[i]);
+    let v = Mat::from_fn(n, k, |i, j| out.x[m * k + j * n + i] / dx[i]);
+    Ok((u, v, CompletionReport::from_outcome(out)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::completion::full::tests::small_pair;
+    use crate::completion::objective::LowNorm;
+    use crate::fmap::{ovsjanikov, OvsjanikovOptions};
+    use crate::pointwise::{max_inner_product, nearest_neighbors};
+
+    fn fraction(map: &[usize], truth: &[usize]) -> f64 {
+        map.iter().zip(truth).filter(|(a, b)| a == b).count() as f64 / truth.len() as f64
+    }
+
+    /// (9) by ADMM and (10) by L-BFGS with a rank as large as the shapes agree on a small
+    /// problem where both apply (the low norm's minimum over factorizations is the nuclear
+    /// norm), and both objectives decrease.
+    #[test]
+    fn convex_and_low_norm_forms_agree() {
+        let sp = small_pair(1, 12); // 42 vertices
+        let n = sp.bx.n();
+        let params = CompletionParams {
+            mu1: 0.05,
+            mu2: 0.05,
+            mu3: 0.02,
+            mu4: 0.5,
+            xi: 1e-2,
+            low_norm: LowNorm::Mass,
+            block_rows: 64,
+            ..CompletionParams::default()
+        };
+        let full = FullProblem::new(&sp.lx, &sp.ly, &sp.bx, &sp.by, &sp.f, &sp.g, 12, Scaling::Unit).unwrap();
+        let k = n;
+        let admm = AdmmOptions { eps_abs: 1e-10, eps_rel: 1e-8, ..Default::default() };
+        let (t9, r9) = convex::solve(&full, &params, &admm, Mat::<f64>::zeros(n, n).as_ref(), k).unwrap();
+        let u0 = crate::completion::testutil::randn(n, k, 5) * 0.1;
+        let v0 = crate::completion::testutil::randn(n, k, 6) * 0.1;
+        let opts = OptimizeOptions { rel_tol: 1e-15, grad_tol: 1e-12, max_iterations: 20000, ..Default::default() };
+        let (u, v, r10) = low_norm(&full, &params, &opts, u0.as_ref(), v0.as_ref()).unwrap();
+        assert!(r10.objective_history.windows(2).all(|w| w[1] <= w[0]));
+        let t10 = mul(u.as_ref(), v.transpose());
+        let (f9, f10) = (r9.terms.total, r10.terms.total);
+        let dt = (&t9 - &t10).norm_l2() / t9.norm_l2();
+        eprintln!(
+            "(9): {} ADMM iterations, f = {f9:.10}; (10): {} L-BFGS iterations, f = {f10:.10}; ‖ΔT‖/‖T‖ = {dt:.2e}",
+            r9.iterations, r10.iterations
+        );
+        assert!(
+            r9.converged,
+            "{} iterations, residuals {:.2e} {:.2e}",
+            r9.iterations, r9.primal_residual, r9.dual_residual
+        );
+        assert!((f9 - f10).abs() < 1e-5 * f9, "{f9} vs {f10}");
+        assert!(dt < 1e-2, "{dt}");
+        // The nuclear norm of (9) at T10 is at most the low norm of its factors.
+        let at10 = convex::objective(&full, &params, t10.as_ref(), k).unwrap();
+        assert!(at10.low_norm <= r10.terms.low_norm * (1.0 + 1e-6));
+    }
+
+    /// Every form recovers a vertex permutation (mesh and renumbered, rescaled copy) from an
+    /// Ovsjanikov start, by nearest neighbours of the rows of R among the rows of L.
+    #[test]
+    fn every_form_recovers_a_permutation() {
+        let sp = small_pair(3, 40); // 642 vertices
+        let c0 = ovsjanikov(&sp.bx, &sp.by, &sp.f, &sp.g, 20, &OvsjanikovOptions { commutativity: 1e-2 }).unwrap();
+        let start =
+            crate::pointwise::map_from_fmap(sp.bx.eigenvectors.as_ref(), sp.by.eigenvectors.as_ref(), c0.as_ref());
+        eprintln!("start: {:.1}%", 100.0 * fraction(&start.unwrap(), &sp.truth));
+        for (form, optimizer) in [
+            (Form::Subspace, Optimizer::Lbfgs),
+            (Form::Subspace, Optimizer::Rcg),
+            (Form::FixedRank, Optimizer::Rcg),
+            (Form::FixedRank, Optimizer::Lbfgs),
+            (Form::LowNorm, Optimizer::Lbfgs),
+        ] {
+            let mut opts = CompletionOptions::paper(false, Scaling::Unit);
+            opts.form = form;
+            opts.optimizer = Some(optimizer);
+            opts.k_prime = 40;
+            opts.k = 30;
+            opts.optimize.max_iterations = 1000;
+            if form != Form::Subspace {
+                // Nothing confines the vertex forms to smooth functions but the Dirichlet terms
+                // (the L1 term alone favours spiky, high-frequency T), so they need larger μ1, μ2
+                // than the subspace form; they also have m·k + n·k variables and converge
+                // more slowly.
+                opts.params.mu1 = 0.3;
+                opts.params.mu2 = 0.3;
+                opts.optimize.max_iterations = 1500;
+                opts.optimize.rel_tol = 1e-8;
+            }
+            if optimizer == Optimizer::Rcg {
+                opts.params.mu4 = 0.0;
+            }
+            let s = solve(&sp.bx, &sp.by, Some((&sp.lx, &sp.ly)), &sp.f, &sp.g, c0.as_ref(), &opts).unwrap();
+            let map = nearest_neighbors(s.left.as_ref(), s.right.as_ref()).unwrap();
+            let rate = fraction(&map, &sp.truth);
+            let mip = fraction(&max_inner_product(s.left.as_ref(), s.right.as_ref()).unwrap(), &sp.truth);
+            let via_c = fraction(
+                &crate::pointwise::map_from_fmap(
+                    sp.bx.eigenvectors.as_ref(),
+                    sp.by.eigenvectors.as_ref(),
+                    s.c.as_ref(),
+                )
+                .unwrap(),
+                &sp.truth,
+            );
+            eprintln!(
+                "{form:?} / {optimizer:?}: {:.1}% recovered (argmax T {:.1}%, via C {:.1}%), objective {:.4e}, {}",
+                100.0 * rate,
+                100.0 * mip,
+                100.0 * via_c,
+                s.objective,
+                s.report
+            );
+            assert!(rate >= 0.95, "{form:?} / {optimizer:?}: {rate}");
+        }
+    }
+
+    #[test]
+    fn bad_parameters_are_errors() {
+        let sp = small_pair(2, 20);
+        let c0 = Mat::<f64>::identity(5, 5);
+        let base = || {
+            let mut o = CompletionOptions::paper(true, Scaling::Unit);
+            o.k_prime = 20;
+            o.k = 10;
+            o
+        };
+        let run = |o: &CompletionOptions| solve(&sp.bx, &sp.by, Some((&sp.lx, &sp.ly)), &sp.f, &sp.g, c0.as_ref(), o);
+        let mut o = base();
+        o.k = 21;
+        assert!(run(&o).unwrap_err().to_string().contains("k"));
+        let mut o = base();
+        o.k_prime = sp.bx.n();
+        assert!(run(&o).is_err());
+        let mut o = base();
+        o.params.mu3 = -1.0;
+        assert!(run(&o).unwrap_err().to_string().contains("mu3"));
+        let mut o = base();
+        o.optimizer = Some(Optimizer::Rcg);
+        assert!(run(&o).unwrap_err().to_string().contains("mu4"));
+        let g2 = Descriptors::new(sp.g.values.subcols(0, 3).to_owned(), sp.g.names[..3].to_vec()).unwrap();
+        assert!(solve(&sp.bx, &sp.by, None, &sp.f, &g2, c0.as_ref(), &base())
+            .unwrap_err()
+            .to_string()
+            .contains("columns"));
+        let mut o = base();
+        o.form = Form::LowNorm;
+        assert!(solve(&sp.bx, &sp.by, None, &sp.f, &sp.g, c0.as_ref(), &o)
+            .unwrap_err()
+            .to_string()
+            .contains("Laplacians"));
+    }
+}
