@@ -1,6 +1,11 @@
 //! Colours for looking at correspondences (the paper's Figure 8): X coloured by a smooth
 //! function of position, Y coloured by pulling those colours back through a map, and scalar
-//! functions (e.g. a transferred delta, Figures 5–6) through a colour map.
+//! functions (e.g. a transferred delta, Figures 5–6) through a colour map; [`mod@render`] draws
+//! coloured meshes and point clouds to an image and writes it as PNG, without a GPU.
+
+pub mod render;
+
+pub use render::{render, render_pair, write_png, ColoredShape, Image, View};
 
 /// A smooth colouring by position: each coordinate, normalized to [0, 1] over the bounding box,
 /// becomes one RGB channel (with a gamma of 0.8 to lift dark corners). One colour per vertex.
