@@ -27,6 +27,7 @@ pub mod fmap;
 pub mod geodesic;
 pub mod io;
 pub mod laplacian;
+pub mod matching;
 pub mod pointwise;
 pub mod primitives;
 pub mod shape;

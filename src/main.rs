@@ -242,15 +242,72 @@ struct DescriptorArgs {
     quiet: bool,
 }
 
-#[derive(Clone, Copy, PartialEq, ValueEnum, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
 enum Refine {
-    /// Nearest neighbours in the spectral embedding only.
+    /// The method's own point map (nearest neighbours in the spectral embedding).
     None,
     /// The ICP refinement of Ovsjanikov et al. 2012 (orthonormal C).
     Icp,
-    /// ZoomOut (Melzi et al. 2019) from k to --zoomout-to eigenpairs.
+    /// ZoomOut (Melzi et al. 2019) up to --zoomout-to eigenpairs.
     Zoomout,
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum MethodChoice {
+    /// Ovsjanikov et al. 2012, eq. (5) (least squares, optional Laplacian commutativity).
+    Fmap,
+    /// Pokrass et al. 2013, eq. (6) (permuted sparse coding).
+    Pokrass,
+    /// Kovnatsky et al. 2013, eq. (7) (coupled quasi-harmonic bases).
+    Coupled,
+    /// Kovnatsky et al. 2015, eqs. (8)–(11) (matrix completion; see --form).
+    Completion,
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum FormChoice {
+    /// (11): T = Ψ_k' A Bᵀ Φ_k'ᵀ, A and B k' × k.
+    Subspace,
+    /// (8): T = U Vᵀ of rank k on the vertices (Riemannian CG).
+    FixedRank,
+    /// (9): convex, nuclear norm on the dense m × n T (small shapes: m·n ≤ 4·10⁶).
+    LowRank,
+    /// (10): T = U Vᵀ with ½(‖U‖² + ‖V‖²) on the vertices.
+    LowNorm,
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum ScalingChoice {
+    /// Scale-free weights: unit-area shapes, relative data term (see the library docs).
+    Unit,
+    /// The paper's (11) literally (its weights depend on the meshes' size and sampling).
+    Paper,
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum ExtractChoice {
+    /// Nearest neighbours of the rows of Φ_k' B among the rows of Ψ_k' A.
+    Nn,
+    /// The largest entry of every column of T (never formed).
+    Argmax,
+    /// Nearest neighbours of the rows of Φ_k' among the rows of Ψ_k' C.
+    Fmap,
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum InitChoice {
+    /// A = C₀ zero-padded, B = I.
+    Pad,
+    /// A, B from the SVD of C₀.
+    Svd,
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum OptimizerChoice {
+    /// L-BFGS on the factors.
+    Lbfgs,
+    /// Riemannian conjugate gradients on the fixed-rank manifold (needs --mu4 0).
+    Rcg,
 }
 
 #[derive(clap::Args)]
@@ -261,21 +318,80 @@ struct MatchArgs {
     y: PathBuf,
     /// Corresponding data: `wks:N`, `hks:N`, `wks+hks:N`, `segments:X.seg,Y.seg` (labels that
     /// agree between the files), `persistence`, `mser`, `landmarks:pairs.txt` (0-based `i j`
-    /// per line), or `matrix:F.npy,G.npy`.
+    /// per line), `rich` (100 WKS + 100 heat kernel maps localized on the persistence segments,
+    /// the paper's rich data) or `rich:X.seg,Y.seg` (on given segments), or `matrix:F.npy,G.npy`.
     #[arg(long, default_value = "wks:100")]
     data: String,
-    /// Size k of the functional map (k × k).
-    #[arg(short, default_value_t = 50)]
-    k: usize,
-    /// Number of eigenpairs computed per shape (≥ k and ≥ --zoomout-to).
-    #[arg(long, default_value_t = 200)]
-    kprime: usize,
-    /// Weight μ_c of the Laplacian-commutativity term of the least-squares map (0: the paper's eq. (5)).
-    #[arg(long, default_value_t = 1e-3)]
+    /// Functional-map method.
+    #[arg(long, value_enum, default_value = "fmap")]
+    method: MethodChoice,
+    /// Form of the completion method.
+    #[arg(long, value_enum, default_value = "subspace")]
+    form: FormChoice,
+    /// Size k of the functional map (baselines; default 50) or the rank k of the completion
+    /// method (default 250 for scarce data, 30 for rich data: wks, hks, rich, matrix).
+    #[arg(short)]
+    k: Option<usize>,
+    /// Eigenpairs per shape k': the basis size of the baselines (default 200) or the subspace
+    /// size of the completion method (default 350 for scarce data, 50 for rich data).
+    #[arg(long)]
+    kprime: Option<usize>,
+    /// Weight μ_c of the Laplacian-commutativity term of eq. (5) relative to its normalized data
+    /// term (0: the paper's plain eq. (5)); also used for the completion method's start.
+    #[arg(long, default_value_t = 0.0)]
     commutativity: f64,
+    /// Normalization of the completion method's weights.
+    #[arg(long, value_enum, default_value = "unit")]
+    scaling: ScalingChoice,
+    /// μ1, weight of the Dirichlet energy on X (default: per --scaling).
+    #[arg(long)]
+    mu1: Option<f64>,
+    /// μ2, weight of the Dirichlet energy on Y.
+    #[arg(long)]
+    mu2: Option<f64>,
+    /// μ3, weight of the L1 term.
+    #[arg(long)]
+    mu3: Option<f64>,
+    /// μ4, weight of the low-norm term.
+    #[arg(long)]
+    mu4: Option<f64>,
+    /// ξ of the smoothed absolute value √(t² + ξ).
+    #[arg(long)]
+    xi: Option<f64>,
+    /// Weight of the optional Laplacian-commutativity term added to the completion objective
+    /// (0: the paper's pure form).
+    #[arg(long, default_value_t = 0.0)]
+    completion_commutativity: f64,
+    /// Size of the leading block of C the completion's commutativity term acts on (0: all k').
+    #[arg(long, default_value_t = 50)]
+    completion_commutativity_k: usize,
+    /// Initialization of the completion method from the eq. (5) map.
+    #[arg(long, value_enum, default_value = "pad")]
+    init: InitChoice,
+    /// Size of the eq. (5) map that starts the completion method.
+    #[arg(long, default_value_t = 50)]
+    init_k: usize,
+    /// Optimizer of the completion method (default: L-BFGS, RCG for --form fixed-rank).
+    #[arg(long, value_enum)]
+    optimizer: Option<OptimizerChoice>,
+    /// Iteration cap of the completion optimizer.
+    #[arg(long, default_value_t = 300)]
+    max_iterations: usize,
+    /// Stop when the objective's relative decrease in one iteration is at most this.
+    #[arg(long, default_value_t = 1e-6)]
+    rel_tol: f64,
+    /// Point-map extraction of the completion method.
+    #[arg(long, value_enum, default_value = "nn")]
+    extract: ExtractChoice,
     /// Point-wise refinement.
     #[arg(long, value_enum, default_value = "zoomout")]
     refine: Refine,
+    /// Size of the map the refinement of the completion method starts from.
+    #[arg(long, default_value_t = 50)]
+    refine_k: usize,
+    /// Maximum number of ICP iterations.
+    #[arg(long, default_value_t = 10)]
+    icp_iterations: usize,
     /// Final size of ZoomOut.
     #[arg(long, default_value_t = 150)]
     zoomout_to: usize,
@@ -285,6 +401,19 @@ struct MatchArgs {
     /// Write map.txt with 1-based vertex ids (MATLAB).
     #[arg(long)]
     one_based: bool,
+    /// Also write the soft map T δ_i (a function on Y) of these vertices of X (comma-separated,
+    /// 0-based) as soft_<i>.npy and soft_<i>.ply.
+    #[arg(long, value_delimiter = ',')]
+    soft: Vec<usize>,
+    /// Camera of render.png: azimuth,elevation in degrees (0,0: looking along −Z, Y up).
+    #[arg(long, default_value = "0,0")]
+    view: String,
+    /// Size of render.png, WIDTHxHEIGHT pixels.
+    #[arg(long, default_value = "1600x900")]
+    size: String,
+    /// Do not write render.png.
+    #[arg(long)]
+    no_render: bool,
     /// Output directory.
     #[arg(short, long)]
     output: PathBuf,
@@ -825,6 +954,19 @@ fn pair_data(
             let (f, g, _) = pers::matched_segment_indicators(&a, bx, &b, by)?;
             Ok((f, g))
         }
+        "rich" => {
+            // Segments: given label files (matched by label) or persistence segments (matched
+            // by signature); then 100 WKS + 100 HKM localized on them.
+            let (fs, gs) = if arg.is_empty() {
+                let a = persistence_labels(x, lx, bx, seg)?;
+                let b = persistence_labels(y, ly, by, seg)?;
+                let (f, g, _) = pers::matched_segment_indicators(&a, bx, &b, by)?;
+                (f, g)
+            } else {
+                pair_data(&format!("segments:{arg}"), (x, lx, bx), (y, ly, by), seg)?
+            };
+            desc::rich(bx, by, &fs, &gs, 100, 100)
+        }
         "mser" => match (x, y) {
             (Shape::Mesh(mx), Shape::Mesh(my)) => {
                 let (f, g, _) =
@@ -846,7 +988,8 @@ fn pair_data(
             Ok((f, g))
         }
         _ => {
-            Err(bad("unknown kind (wks:N, hks:N, wks+hks:N, segments:A,B, persistence, mser, landmarks:F, matrix:F,G)"
+            Err(bad("unknown kind (wks:N, hks:N, wks+hks:N, segments:A,B, persistence, mser, landmarks:F, rich, \
+                     rich:A,B, matrix:F,G)"
                 .into()))
         }
     }
@@ -867,81 +1010,206 @@ fn mesh_data(shape: &Shape) -> Option<funcorr::io::MeshData> {
     }
 }
 
-/// Functional map (eq. (5) with Laplacian commutativity) and its refined point-wise map X → Y.
-fn fmap_pipeline(
-    bx: &Basis,
-    by: &Basis,
-    f: &funcorr::descriptors::Descriptors,
-    g: &funcorr::descriptors::Descriptors,
-    args: &MatchArgs,
-    st: &mut Stages,
-) -> Result<(faer::Mat<f64>, Vec<usize>)> {
-    use funcorr::fmap::{ovsjanikov, OvsjanikovOptions};
-    use funcorr::pointwise;
-    let opts = OvsjanikovOptions { commutativity: args.commutativity };
-    let c = st.run("functional map", || ovsjanikov(bx, by, f, g, args.k, &opts))?;
-    let (phi, psi) = (bx.eigenvectors.as_ref(), by.eigenvectors.as_ref());
-    st.run("point-wise map", || match args.refine {
-        Refine::None => Ok((c.clone(), pointwise::map_from_fmap(phi, psi, c.as_ref())?)),
-        Refine::Icp => pointwise::icp(phi, psi, c.as_ref(), &pointwise::IcpOptions::default()),
-        Refine::Zoomout => {
-            let o = pointwise::ZoomOutOptions { k_final: args.zoomout_to.max(args.k), step: args.zoomout_step };
-            pointwise::zoomout(phi, psi, &by.mass, c.as_ref(), &o)
+/// Whether a `--data` spec is the paper's rich setting (many functions) rather than scarce data.
+fn is_rich(spec: &str) -> bool {
+    let kind = spec.split_once(':').map_or(spec, |(k, _)| k);
+    matches!(kind, "wks" | "hks" | "wks+hks" | "rich" | "matrix")
+}
+
+/// The library options of `funcorr match` (defaults per method and data, see `--help`).
+fn match_options(args: &MatchArgs) -> Result<funcorr::matching::MatchOptions> {
+    use funcorr::completion::{self as comp, CompletionOptions, Form, Init, Optimizer, Scaling};
+    use funcorr::matching::{Extraction, MatchOptions, Method};
+    let scaling = match args.scaling {
+        ScalingChoice::Unit => Scaling::Unit,
+        ScalingChoice::Paper => Scaling::Paper,
+    };
+    let mut completion = CompletionOptions::paper(is_rich(&args.data), scaling);
+    if let Some(k) = args.k {
+        completion.k = k;
+    }
+    if let Some(kp) = args.kprime {
+        completion.k_prime = kp;
+    }
+    completion.form = match args.form {
+        FormChoice::Subspace => Form::Subspace,
+        FormChoice::FixedRank => Form::FixedRank,
+        FormChoice::LowRank => Form::LowRank,
+        FormChoice::LowNorm => Form::LowNorm,
+    };
+    completion.init = match args.init {
+        InitChoice::Pad => Init::Pad,
+        InitChoice::Svd => Init::Svd,
+    };
+    completion.optimizer = args.optimizer.map(|o| match o {
+        OptimizerChoice::Lbfgs => Optimizer::Lbfgs,
+        OptimizerChoice::Rcg => Optimizer::Rcg,
+    });
+    let p = &mut completion.params;
+    for (slot, v) in [(&mut p.mu1, args.mu1), (&mut p.mu2, args.mu2), (&mut p.mu3, args.mu3), (&mut p.mu4, args.mu4), (&mut p.xi, args.xi)] {
+        if let Some(v) = v {
+            *slot = v;
         }
+    }
+    if completion.optimizer == Some(Optimizer::Rcg) || completion.form == Form::FixedRank {
+        if args.mu4.is_some_and(|m| m != 0.0) {
+            return Err(Error::invalid("--mu4", "the fixed-rank forms have no low-norm term"));
+        }
+        p.mu4 = 0.0;
+    }
+    p.mu_comm = args.completion_commutativity;
+    p.k_comm = args.completion_commutativity_k;
+    completion.optimize = comp::OptimizeOptions {
+        max_iterations: args.max_iterations,
+        rel_tol: args.rel_tol,
+        ..comp::OptimizeOptions::default()
+    };
+    if !(args.commutativity.is_finite() && args.commutativity >= 0.0) {
+        return Err(Error::invalid("--commutativity", "must be finite and ≥ 0"));
+    }
+    Ok(MatchOptions {
+        method: match args.method {
+            MethodChoice::Fmap => Method::Fmap,
+            MethodChoice::Pokrass => Method::Pokrass,
+            MethodChoice::Coupled => Method::Coupled,
+            MethodChoice::Completion => Method::Completion,
+        },
+        k: args.k.unwrap_or(50),
+        commutativity: args.commutativity,
+        completion,
+        init_k: args.init_k,
+        extraction: match args.extract {
+            ExtractChoice::Nn => Extraction::Nn,
+            ExtractChoice::Argmax => Extraction::Argmax,
+            ExtractChoice::Fmap => Extraction::Fmap,
+        },
+        refine: match args.refine {
+            Refine::None => funcorr::matching::Refine::None,
+            Refine::Icp => funcorr::matching::Refine::Icp,
+            Refine::Zoomout => funcorr::matching::Refine::Zoomout,
+        },
+        refine_k: args.refine_k,
+        icp: funcorr::pointwise::IcpOptions { max_iterations: args.icp_iterations },
+        zoomout_to: args.zoomout_to,
+        zoomout_step: args.zoomout_step,
+        ..MatchOptions::default()
     })
 }
 
+/// Writes a k × k (or r × c) matrix as .npy.
+fn write_mat_npy(path: &Path, c: &faer::Mat<f64>) -> Result<()> {
+    let (r, k) = (c.nrows(), c.ncols());
+    let dense = funcorr::io::DenseMatrix { rows: r, cols: k, data: (0..r * k).map(|t| c[(t / k, t % k)]).collect() };
+    funcorr::io::npy::write_npy_matrix(path, &dense)
+}
+
+/// Parses `WIDTHxHEIGHT`.
+fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let bad = || Error::invalid("--size", format!("'{s}': expected WIDTHxHEIGHT, e.g. 1600x900"));
+    let (w, h) = s.split_once('x').ok_or_else(bad)?;
+    Ok((w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?))
+}
+
+/// The colour-transfer outputs of a map: X coloured by position, Y by pulling the colours back
+/// through `map_yx`; X.ply, Y.ply and (unless `size` is None) render.png.
+fn write_colour_transfer(
+    out: &Path,
+    x: &Shape,
+    y: &Shape,
+    map_yx: &[usize],
+    render: Option<((u32, u32), &funcorr::viz::View)>,
+) -> Result<()> {
+    let (Some(mut dx), Some(mut dy)) = (mesh_data(x), mesh_data(y)) else {
+        return Ok(());
+    };
+    let colors_x = funcorr::viz::position_colors(&dx.vertices);
+    let colors_y = funcorr::viz::pull_back_colors(&colors_x, map_yx)
+        .ok_or_else(|| Error::invalid("map", "the map Y → X points outside X"))?;
+    if let Some(((w, h), view)) = render {
+        use funcorr::viz::{render_pair, write_png, ColoredShape};
+        let sx = ColoredShape { vertices: &dx.vertices, faces: &dx.faces, colors: &colors_x };
+        let sy = ColoredShape { vertices: &dy.vertices, faces: &dy.faces, colors: &colors_y };
+        write_png(&out.join("render.png"), &render_pair(&sx, &sy, w, h, view)?)?;
+    }
+    dx.colors = Some(colors_x);
+    dy.colors = Some(colors_y);
+    funcorr::io::write_mesh(&out.join("X.ply"), &dx)?;
+    funcorr::io::write_mesh(&out.join("Y.ply"), &dy)
+}
+
 fn match_shapes(args: &MatchArgs) -> Result<()> {
-    use funcorr::pointwise;
     let mut st = Stages { quiet: args.quiet, parts: vec![] };
-    let kprime = args.kprime.max(args.k).max(if args.refine == Refine::Zoomout { args.zoomout_to } else { 0 });
+    let opts = match_options(args)?;
+    let view = funcorr::viz::View::parse(&args.view)?;
+    let size = parse_size(&args.size)?;
+    let basis_k = opts.basis_size().max(if opts.method == funcorr::matching::Method::Completion {
+        0
+    } else {
+        args.kprime.unwrap_or(200)
+    });
     let x = st.run("read", || Shape::load(&args.x))?;
     let y = st.run("read", || Shape::load(&args.y))?;
-    let (lx, bx) = shape_basis(&x, &args.lap, &args.cache, kprime, None, &mut st)?;
-    let (ly, by) = shape_basis(&y, &args.lap, &args.cache, kprime, None, &mut st)?;
+    if let Some(&bad) = args.soft.iter().find(|&&i| i >= x.n_vertices()) {
+        return Err(Error::invalid("--soft", format!("vertex {bad} of X does not exist (n = {})", x.n_vertices())));
+    }
+    let (lx, bx) = shape_basis(&x, &args.lap, &args.cache, basis_k, None, &mut st)?;
+    let (ly, by) = shape_basis(&y, &args.lap, &args.cache, basis_k, None, &mut st)?;
     let (f, g) = st.run("data", || pair_data(&args.data, (&x, &lx, &bx), (&y, &ly, &by), &args.seg))?;
-    let (phi, psi) = (bx.eigenvectors.as_ref(), by.eigenvectors.as_ref());
-    let (c, map_xy) = fmap_pipeline(&bx, &by, &f, &g, args, &mut st)?;
+    let r = funcorr::matching::run(&bx, &by, Some((&lx, &ly)), &f, &g, &opts)?;
+    for (name, secs) in &r.stages {
+        st.note(format!("{name} {secs:.3} s"));
+    }
     let stages = st.parts.clone();
     st.run("write", || {
         let out = &args.output;
         std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-        let base = usize::from(args.one_based);
-        let text: String = map_xy.iter().map(|j| format!("{}\n", j + base)).collect();
-        let p = out.join("map.txt");
-        std::fs::write(&p, text).map_err(|e| Error::io(&p, e))?;
-        funcorr::io::npy::write_npy_vec_u64(
-            &out.join("map.npy"),
-            &map_xy.iter().map(|&j| j as u64).collect::<Vec<_>>(),
-        )?;
-        let kk = c.nrows();
-        let dense =
-            funcorr::io::DenseMatrix { rows: kk, cols: kk, data: (0..kk * kk).map(|t| c[(t / kk, t % kk)]).collect() };
-        funcorr::io::npy::write_npy_matrix(&out.join("C.npy"), &dense)?;
+        write_map_files(out, &r.map_xy, args.one_based)?;
+        write_mat_npy(&out.join("C.npy"), &r.c)?;
+        if r.c_method.nrows() != r.c.nrows() || opts.refine != funcorr::matching::Refine::None {
+            write_mat_npy(&out.join("C_method.npy"), &r.c_method)?;
+        }
+        if let Some((a, b)) = &r.coefficients {
+            write_mat_npy(&out.join("A.npy"), a)?;
+            write_mat_npy(&out.join("B.npy"), b)?;
+        }
+        for &i in &args.soft {
+            let t = funcorr::pointwise::soft_map_column(bx.eigenvectors.as_ref(), by.eigenvectors.as_ref(), r.c_method.as_ref(), i)?;
+            funcorr::io::npy::write_npy_matrix(
+                &out.join(format!("soft_{i}.npy")),
+                &funcorr::io::DenseMatrix { rows: t.len(), cols: 1, data: t.clone() },
+            )?;
+            if let Some(mut dy) = mesh_data(&y) {
+                dy.colors = Some(funcorr::viz::diverging_colors(&t));
+                funcorr::io::write_mesh(&out.join(format!("soft_{i}.ply")), &dy)?;
+            }
+        }
         let report = serde_json::json!({
             "x": args.x.display().to_string(), "y": args.y.display().to_string(),
             "n": x.n_vertices(), "m": y.n_vertices(),
-            "method": "fmap (Ovsjanikov et al. 2012, eq. (5))",
-            "data": args.data, "q": f.q(), "k": args.k, "kprime": kprime,
-            "commutativity": args.commutativity, "refine": args.refine, "final_k": kk,
-            "stages": stages,
+            "data": args.data, "q": f.q(),
+            "options": opts,
+            "basis_size": basis_k,
+            "final_k": r.c.nrows(),
+            "solver": r.solver,
+            "stages": r.stages.iter().map(|(n, s)| serde_json::json!({"stage": n, "seconds": s})).collect::<Vec<_>>(),
+            "log": stages,
         });
         let p = out.join("report.json");
         std::fs::write(&p, serde_json::to_string_pretty(&report).expect("plain JSON")).map_err(|e| Error::io(&p, e))?;
-        // Colour transfer for MeshLab / Blender: X by position, Y pulled back through the map.
-        if let (Some(mut dx), Some(mut dy)) = (mesh_data(&x), mesh_data(&y)) {
-            let colors_x = funcorr::viz::position_colors(&dx.vertices);
-            let map_yx = pointwise::map_yx_from_fmap(phi, psi, c.as_ref())?;
-            dy.colors = funcorr::viz::pull_back_colors(&colors_x, &map_yx);
-            dx.colors = Some(colors_x);
-            funcorr::io::write_mesh(&out.join("X.ply"), &dx)?;
-            funcorr::io::write_mesh(&out.join("Y.ply"), &dy)?;
-        }
-        Ok(())
+        write_colour_transfer(out, &x, &y, &r.map_yx, (!args.no_render).then_some((size, &view)))
     })?;
-    st.note(format!("q {} | C {}×{}", f.q(), c.nrows(), c.ncols()));
+    st.note(format!("q {} | C {}×{}", f.q(), r.c.nrows(), r.c.ncols()));
     st.finish();
     Ok(())
+}
+
+/// map.txt (one vertex of Y per line, 0- or 1-based) and map.npy (0-based, u64).
+fn write_map_files(out: &Path, map_xy: &[usize], one_based: bool) -> Result<()> {
+    let base = usize::from(one_based);
+    let text: String = map_xy.iter().map(|j| format!("{}\n", j + base)).collect();
+    let p = out.join("map.txt");
+    std::fs::write(&p, text).map_err(|e| Error::io(&p, e))?;
+    funcorr::io::npy::write_npy_vec_u64(&out.join("map.npy"), &map_xy.iter().map(|&j| j as u64).collect::<Vec<_>>())
 }
 
 fn eval(args: &EvalArgs) -> Result<()> {
@@ -1034,38 +1302,39 @@ fn demo_segments(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&TriMesh, 
     Ok(())
 }
 
-/// Demo step: the default `funcorr match` pipeline (100 WKS, eq. (5) with commutativity, k = 50,
-/// ZoomOut to the basis size) evaluated against the bundled ground truth.
+/// The defaults of `funcorr match`, from its own argument parser.
+fn default_match_args() -> Result<MatchArgs> {
+    match Cli::try_parse_from(["funcorr", "match", "X", "Y", "-o", "unused"]).map_err(|e| Error::invalid("demo", e.to_string()))?.command {
+        Command::Match(args) => Ok(args),
+        _ => Err(Error::invalid("demo", "could not build the match defaults")),
+    }
+}
+
+/// Demo step: the default `funcorr match` pipeline evaluated against the bundled ground truth;
+/// writes map.txt, X.ply, Y.ply and render.png.
 fn demo_match(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&TriMesh, &Basis)) -> Result<()> {
-    use funcorr::descriptors::signatures::wks;
     use funcorr::eval::{hard_errors, summarize, GroundTruth};
-    // The defaults of `funcorr match`, from its own argument parser.
-    let k = bx.k().min(50).to_string();
-    let Command::Match(args) = Cli::try_parse_from(["funcorr", "match", "X", "Y", "-o", "unused", "-k", &k])
-        .map_err(|e| Error::invalid("demo", e.to_string()))?
-        .command
-    else {
-        return Err(Error::invalid("demo", "could not build the match defaults"));
-    };
-    let args = MatchArgs { zoomout_to: bx.k().min(by.k()), ..args };
-    let mut st = Stages { quiet: true, parts: vec![] };
+    let args = default_match_args()?;
+    let opts = match_options(&args)?;
     let t = Instant::now();
-    let (f, g) = (wks(bx, 100, true)?, wks(by, 100, true)?);
-    let (c, map_xy) = fmap_pipeline(bx, by, &f, &g, &args, &mut st)?;
+    let (x, y) = (Shape::Mesh(mx.clone()), Shape::Mesh(my.clone()));
+    let (lx, ly) = (laplacian::cotangent(mx)?, laplacian::cotangent(my)?);
+    let seg = &args.seg;
+    let (f, g) = pair_data(&args.data, (&x, &lx, bx), (&y, &ly, by), seg)?;
+    let r = funcorr::matching::run(bx, by, Some((&lx, &ly)), &f, &g, &opts)?;
     let seconds = t.elapsed().as_secs_f64();
     let vts = |i: usize, n: usize| {
         funcorr::io::indices::read_index_list(DEMO_VTS[i].as_bytes(), Path::new("demo.vts"), true, n)
     };
     let geo = funcorr::geodesic::HeatGeodesics::new(my)?;
     let gt = GroundTruth { x: vts(0, mx.n_vertices())?, y: vts(1, my.n_vertices())?, y_sym: None };
-    let plain = summarize(&hard_errors(&map_xy, &gt, &geo, my.total_area())?);
+    let plain = summarize(&hard_errors(&r.map_xy, &gt, &geo, my.total_area())?);
     let gt = GroundTruth { y_sym: Some(vts(3, my.n_vertices())?), ..gt };
-    let sym = summarize(&hard_errors(&map_xy, &gt, &geo, my.total_area())?);
-    outln!(
-        "\nMatching X → Y (100 WKS, functional map k = {} with Laplacian commutativity, ZoomOut to {}): {seconds:.1} s",
-        args.k,
-        c.nrows()
-    );
+    let sym = summarize(&hard_errors(&r.map_xy, &gt, &geo, my.total_area())?);
+    outln!("\nMatching X → Y with the defaults of `funcorr match` ({}): {seconds:.1} s", describe(&args, &opts));
+    for (name, secs) in &r.stages {
+        outln!("  {name}: {secs:.2} s");
+    }
     outln!(
         "  geodesic error (Princeton protocol, heat-method geodesics): mean ×100 = {:.2}, {:.1}% of points ≤ 0.05, {:.1}% ≤ 0.10",
         100.0 * plain.mean,
@@ -1073,18 +1342,34 @@ fn demo_match(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&TriMesh, &Ba
         100.0 * plain.at_010
     );
     outln!("  allowing the left-right flip: mean ×100 = {:.2}", 100.0 * sym.mean);
-    let text: String = map_xy.iter().map(|j| format!("{j}\n")).collect();
-    let p = out.join("map.txt");
-    std::fs::write(&p, text).map_err(|e| Error::io(&p, e))?;
-    let mut dx = funcorr::io::MeshData { vertices: mx.vertices().to_vec(), faces: mx.faces().to_vec(), colors: None };
-    let mut dy = funcorr::io::MeshData { vertices: my.vertices().to_vec(), faces: my.faces().to_vec(), colors: None };
-    let colors_x = funcorr::viz::position_colors(&dx.vertices);
-    let map_yx = funcorr::pointwise::map_yx_from_fmap(bx.eigenvectors.as_ref(), by.eigenvectors.as_ref(), c.as_ref())?;
-    dy.colors = funcorr::viz::pull_back_colors(&colors_x, &map_yx);
-    dx.colors = Some(colors_x);
-    funcorr::io::write_mesh(&out.join("X.ply"), &dx)?;
-    funcorr::io::write_mesh(&out.join("Y.ply"), &dy)?;
+    write_map_files(out, &r.map_xy, false)?;
+    let view = funcorr::viz::View::parse(&args.view)?;
+    write_colour_transfer(out, &x, &y, &r.map_yx, Some((parse_size(&args.size)?, &view)))?;
+    outln!("  colour transfer: X.ply, Y.ply (per-vertex colours) and render.png");
     Ok(())
+}
+
+/// One line saying what a match configuration does.
+fn describe(args: &MatchArgs, opts: &funcorr::matching::MatchOptions) -> String {
+    use funcorr::matching::{Method, Refine as R};
+    let method = match opts.method {
+        Method::Fmap if opts.commutativity > 0.0 => {
+            format!("eq. (5) with Laplacian commutativity μ_c = {}, k = {}", opts.commutativity, opts.k)
+        }
+        Method::Fmap => format!("eq. (5), k = {}", opts.k),
+        Method::Pokrass => format!("Pokrass et al. eq. (6), k = {}", opts.k),
+        Method::Coupled => format!("coupled bases eq. (7), k = {}", opts.k),
+        Method::Completion => format!(
+            "matrix completion {:?} k' = {}, k = {}",
+            opts.completion.form, opts.completion.k_prime, opts.completion.k
+        ),
+    };
+    let refine = match opts.refine {
+        R::None => "no refinement".to_string(),
+        R::Icp => format!("ICP ({} iterations at most)", opts.icp.max_iterations),
+        R::Zoomout => format!("ZoomOut to {} in steps of {}", opts.zoomout_to, opts.zoomout_step),
+    };
+    format!("data {}, {method}, {refine}", args.data)
 }
 
 /// The two bundled FAUST shapes (remeshed, ~5k vertices; Bogo et al. 2014, remeshed for
@@ -1094,6 +1379,8 @@ const DEMO_Y: (&str, &[u8]) = ("tr_reg_001.off", include_bytes!("../data/faust/t
 
 fn demo(out: &Path, k: usize) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    // Enough eigenpairs for the default match pipeline.
+    let k = k.max(match_options(&default_match_args()?)?.basis_size());
     outln!("funcorr demo: two FAUST humans (same subject, different poses), k = {k} eigenpairs\n");
     let mut shapes: Vec<(TriMesh, Basis)> = Vec::new();
     for (name, bytes) in [DEMO_X, DEMO_Y] {

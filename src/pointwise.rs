@@ -121,6 +121,40 @@ fn check_fmap(phi: MatRef<f64>, psi: MatRef<f64>, c: MatRef<f64>) -> Result<usiz
     Ok(k)
 }
 
+/// The functional map C (k × k, X → Y) of the pull-back by a point-to-point map Y → X
+/// (`map_yx`, length m): C = Ψ_kᵀ A_Y Φ_k(map_yx), the coefficients on Y of f ∘ map_yx for the
+/// basis functions f of X. `mass_y` is A_Y (length m).
+pub fn fmap_from_map_yx(phi: MatRef<f64>, psi: MatRef<f64>, mass_y: &[f64], map_yx: &[usize], k: usize) -> Result<Mat<f64>> {
+    let (n, m) = (phi.nrows(), psi.nrows());
+    if map_yx.len() != m || mass_y.len() != m {
+        return Err(Error::invalid("map", format!("{} map entries and {} weights for {m} vertices of Y", map_yx.len(), mass_y.len())));
+    }
+    if k == 0 || k > phi.ncols() || k > psi.ncols() {
+        return Err(Error::invalid("k", format!("need 1 ≤ k ≤ {} and {}, got {k}", phi.ncols(), psi.ncols())));
+    }
+    if let Some(&bad) = map_yx.iter().find(|&&i| i >= n) {
+        return Err(Error::invalid("map", format!("vertex {bad} of X does not exist (n = {n})")));
+    }
+    let a_psi = Mat::from_fn(m, k, |j, i| mass_y[j] * psi[(j, i)]);
+    let phi_map = Mat::from_fn(m, k, |j, i| phi[(map_yx[j], i)]);
+    let mut c = Mat::<f64>::zeros(k, k);
+    matmul(c.as_mut(), Accum::Replace, a_psi.transpose(), phi_map.as_ref(), 1.0, Par::Seq);
+    Ok(c)
+}
+
+/// The soft map of vertex i of X (paper Figures 5, 6): the column T δ_i = Ψ_k C Φ_k(i)ᵀ (length
+/// m) of the correspondence kernel of a functional map C (k × k, between mass-orthonormal
+/// bases), a function on Y that is ideally concentrated at the image of x_i (density, in units
+/// of 1 / area of Y).
+pub fn soft_map_column(phi: MatRef<f64>, psi: MatRef<f64>, c: MatRef<f64>, i: usize) -> Result<Vec<f64>> {
+    let k = check_fmap(phi, psi, c)?;
+    if i >= phi.nrows() {
+        return Err(Error::invalid("vertex", format!("vertex {i} of X does not exist (n = {})", phi.nrows())));
+    }
+    let coeff: Vec<f64> = (0..k).map(|a| (0..k).map(|b| c[(a, b)] * phi[(i, b)]).sum()).collect();
+    Ok((0..psi.nrows()).map(|j| (0..k).map(|a| psi[(j, a)] * coeff[a]).sum()).collect())
+}
+
 /// Options of [`icp`].
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct IcpOptions {
@@ -200,10 +234,7 @@ pub fn zoomout(
     while k < kf {
         let map_yx = map_yx_from_fmap(phi, psi, c.as_ref())?;
         k = (k + opts.step).min(kf);
-        let a_psi = Mat::from_fn(psi.nrows(), k, |j, i| mass_y[j] * psi[(j, i)]);
-        let phi_map = Mat::from_fn(psi.nrows(), k, |j, i| phi[(map_yx[j], i)]);
-        c = Mat::<f64>::zeros(k, k);
-        matmul(c.as_mut(), Accum::Replace, a_psi.transpose(), phi_map.as_ref(), 1.0, Par::Seq);
+        c = fmap_from_map_yx(phi, psi, mass_y, &map_yx, k)?;
     }
     let map = map_from_fmap(phi, psi, c.as_ref())?;
     Ok((c, map))

@@ -203,7 +203,8 @@ fn demo_runs_on_bundled_data() {
     assert!(out.status.success(), "{}", text(&out.stderr));
     let s = text(&out.stdout);
     assert!(s.contains("tr_reg_000.off: 4999 vertices") && s.contains("tr_reg_001.off: 5000 vertices"), "{s}");
-    assert_eq!(load_basis(&d.join("tr_reg_000.basis.npz")).unwrap().k(), 20);
+    // At least -k eigenpairs, more when the default match pipeline needs them.
+    assert!(load_basis(&d.join("tr_reg_000.basis.npz")).unwrap().k() >= 20);
     assert_eq!(load_basis(&d.join("tr_reg_001.basis.npz")).unwrap().n(), 5000);
     assert!(s.contains("Persistence segments (scarce data): 5 on X, 5 on Y, 5 matched"), "{s}");
     let f = funcorr::io::npy::read_npy_matrix(&d.join("F.npy")).unwrap();
@@ -211,6 +212,97 @@ fn demo_runs_on_bundled_data() {
     assert!(s.contains("Matching X → Y") && s.contains("geodesic error"), "{s}");
     assert_eq!(std::fs::read_to_string(d.join("map.txt")).unwrap().lines().count(), 4999);
     assert!(d.join("X.ply").exists() && d.join("Y.ply").exists());
+    assert_png(&d.join("render.png"), 1600, 900);
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// A PNG file of the given size (from its IHDR chunk).
+fn assert_png(path: &Path, width: u32, height: u32) {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{} is not a PNG", path.display());
+    let be = |i: usize| u32::from_be_bytes(bytes[i..i + 4].try_into().unwrap());
+    assert_eq!((be(16), be(20)), (width, height));
+}
+
+#[test]
+fn match_every_method_and_its_outputs() {
+    let d = tmp("methods");
+    let (x, y) = (data("tr_reg_000.off"), data("tr_reg_001.off"));
+    let (xs, ys) = (x.to_str().unwrap(), y.to_str().unwrap());
+    let cache = d.join("cache");
+    let (lx, ly) = (data("tr_reg_000_tr_reg_001.tr_reg_000.seg.sym"), data("tr_reg_000_tr_reg_001.tr_reg_001.seg.sym"));
+    let segs = format!("segments:{},{}", lx.display(), ly.display());
+    let common = |out: &Path| -> Vec<String> {
+        ["--cache-dir", cache.to_str().unwrap(), "-o", out.to_str().unwrap(), "--size", "320x200"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect()
+    };
+    for (method, extra) in [
+        ("fmap", vec!["--refine", "icp", "-k", "20", "--kprime", "40", "--soft", "0,100"]),
+        ("pokrass", vec!["--refine", "none", "-k", "15", "--kprime", "30"]),
+        ("coupled", vec!["--refine", "zoomout", "-k", "15", "--kprime", "40", "--zoomout-to", "40", "--zoomout-step", "5"]),
+        ("completion", vec!["--refine", "none", "-k", "15", "--kprime", "30", "--init-k", "15", "--max-iterations", "20", "--soft", "7"]),
+        ("completion", vec!["--form", "fixed-rank", "--refine", "icp", "-k", "10", "--kprime", "20", "--init-k", "10", "--refine-k", "20", "--max-iterations", "5"]),
+    ] {
+        let out = d.join(format!("out-{method}-{}", extra.len()));
+        let mut args: Vec<String> = ["match", xs, ys, "--data", segs.as_str(), "--method", method].iter().map(|s| s.to_string()).collect();
+        args.extend(extra.iter().map(|s| s.to_string()));
+        args.extend(common(&out));
+        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+        let r = run(&refs);
+        assert!(r.status.success(), "{method} {extra:?}: {}", text(&r.stderr));
+        let map = std::fs::read_to_string(out.join("map.txt")).unwrap();
+        assert_eq!(map.lines().count(), 4999);
+        assert!(map.lines().all(|l| l.parse::<usize>().unwrap() < 5000));
+        let npy = funcorr::io::npy::read_npy_matrix(&out.join("map.npy")).unwrap();
+        assert_eq!(npy.rows, 4999);
+        assert_eq!(npy.data[17] as usize, map.lines().nth(17).unwrap().parse::<usize>().unwrap());
+        for f in ["C.npy", "report.json", "X.ply", "Y.ply"] {
+            assert!(out.join(f).exists(), "{method}: {f} missing");
+        }
+        assert_png(&out.join("render.png"), 320, 200);
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+        assert_eq!(report["q"], 11);
+        assert!(report["stages"].as_array().unwrap().iter().any(|s| s["stage"] == "point-wise map"));
+        if method == "completion" {
+            let solver = &report["solver"];
+            assert!(solver["iterations"].as_u64().unwrap() >= 1, "{solver}");
+            assert!(solver["terms"]["data"].as_f64().unwrap() >= 0.0);
+            assert!(solver["seconds_per_iteration"].as_f64().unwrap() > 0.0);
+            assert!(report["options"]["completion"]["params"]["mu3"].as_f64().is_some());
+            if extra.contains(&"fixed-rank") {
+                assert!(!out.join("A.npy").exists());
+            } else {
+                let a = funcorr::io::npy::read_npy_matrix(&out.join("A.npy")).unwrap();
+                assert_eq!((a.rows, a.cols), (30, 15));
+                assert!(out.join("B.npy").exists());
+            }
+        }
+        if extra.contains(&"--soft") {
+            let i = if method == "fmap" { 100 } else { 7 };
+            let soft = funcorr::io::npy::read_npy_matrix(&out.join(format!("soft_{i}.npy"))).unwrap();
+            assert_eq!((soft.rows, soft.cols), (5000, 1));
+            assert!(out.join(format!("soft_{i}.ply")).exists());
+        }
+    }
+    // Bad parameters: a rank above k', the dense convex form on 5k-vertex shapes, μ4 with RCG,
+    // a soft-map vertex that does not exist.
+    let out = d.join("bad");
+    for (extra, needle) in [
+        (vec!["--method", "completion", "-k", "40", "--kprime", "30"], "k"),
+        (vec!["--method", "completion", "--form", "low-rank", "-k", "10", "--kprime", "20", "--init-k", "10"], "low-rank form (9)"),
+        (vec!["--method", "completion", "--optimizer", "rcg", "--mu4", "0.1", "-k", "10", "--kprime", "20"], "mu4"),
+        (vec!["--soft", "99999", "-k", "10", "--kprime", "20"], "--soft"),
+        (vec!["--view", "0", "-k", "10", "--kprime", "20"], "--view"),
+    ] {
+        let mut args: Vec<String> = ["match", xs, ys, "--data", segs.as_str()].iter().map(|s| s.to_string()).collect();
+        args.extend(extra.iter().map(|s| s.to_string()));
+        args.extend(common(&out));
+        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+        assert_fails(&run(&refs), needle);
+    }
     std::fs::remove_dir_all(&d).unwrap();
 }
 

@@ -1,37 +1,49 @@
-//! Functional correspondence by matrix completion, subspace form (Kovnatsky et al. 2015, eq. (11)).
+//! Functional correspondence by matrix completion (Kovnatsky, Bronstein, Bresson,
+//! Vandergheynst, CVPR 2015, §3): all four forms of the paper.
 //!
 //! The correspondence is a matrix T (m × n) between functions on X (n vertices) and on Y (m
-//! vertices), restricted to the span of the first k' eigenfunctions of each shape and of rank k:
+//! vertices). The subspace form (11), the default, restricts it to the span of the first k'
+//! eigenfunctions of each shape and to rank k:
 //!
 //! ```text
-//! T = Ψ_k' A Bᵀ Φ_k'ᵀ,   A, B ∈ R^{k'×k},   C = A Bᵀ ∈ R^{k'×k'} (the functional map).
-//! ```
+//! T = Ψ_k' A Bᵀ Φ_k'ᵀ,   A, B ∈ R^{k'×k},   C = A Bᵀ ∈ R^{k'×k'} (the functional map),
 //!
-//! Problem (11) minimizes over (A, B)
-//!
-//! ```text
 //!   ‖A Bᵀ Â − B̂‖²_F                                  data            ([`terms::data`])
 //! + μ1 tr(A Bᵀ Λ_X B Aᵀ) + μ2 tr(B Aᵀ Λ_Y A Bᵀ)      Dirichlet       ([`terms::dirichlet_x`], [`terms::dirichlet_y`])
-//! + μ3 Σ_ij √(t_ij² + ξ)                               L1 of T         ([`terms::l1`])
+//! + μ3 Σ_ij √(t_ij² + ξ)                               L1 of T         ([`terms::l1`], [`l1`])
 //! + μ4/2 (‖Ψ_k' A‖²_F + ‖Φ_k' B‖²_F)                   low norm        ([`terms::low_norm`])
 //! [+ μ_c ‖C_c Λ_X − Λ_Y C_c‖²_F                        commutativity, optional ([`terms::commutativity`])]
 //! ```
 //!
-//! **Mass placement.** The bases here are mass-orthonormal (Φᵀ A_X Φ = I), so the coefficients
-//! of the data F (n × q) in Φ are Â = Φ_k'ᵀ A_X F, not the paper's literal Φᵀ F (which assumes
-//! Euclidean-orthonormal bases; on meshes whose vertex areas vary the two are not proportional).
-//! [`Problem::new`] computes Â = Φ_k'ᵀ A_X F and B̂ = Ψ_k'ᵀ A_Y G, and the data term works on
-//! these k' × q coefficient matrices only.
+//! The vertex-space forms — fixed rank (8), convex low rank (9), low norm (10) — are in
+//! [`full`], [`fixed_rank`] (Riemannian CG on the manifold of rank-k matrices, as manopt) and
+//! [`convex`] (ADMM); [`solve()`] runs any of them.
 //!
-//! **The other terms** are taken literally from (11) with T as an m × n matrix of numbers: the
-//! L1 term sums over the m·n entries of T; the low-norm term uses Euclidean Frobenius norms
-//! ‖Φ_k' B‖²_F = tr(Bᵀ (Φ_k'ᵀ Φ_k') B) with the k' × k' Gram matrices precomputed (or, as an
-//! option, the mass-weighted ‖Φ_k' B‖²_{A_X} = ‖B‖²_F, see [`LowNorm`]); the Dirichlet terms use
-//! the eigenvalues as in (11). The weights therefore keep the paper's meaning only as far as
-//! the paper's own normalization did; no rescaling with area or vertex count is applied.
+//! ## Mass placement
+//! The bases are mass-orthonormal (Φᵀ A_X Φ = I), so the coefficients of the data F (n × q) are
+//! Â = Φ_k'ᵀ A_X F, not the paper's literal Φᵀ F (which assumes Euclidean-orthonormal bases; on
+//! meshes whose vertex areas vary ~200× the two are not proportional). T is the matrix of the
+//! correspondence kernel: f on X maps to g = T A_X f on Y, so T = Ψ C Φᵀ. With this placement
+//! every term of the vertex forms equals the term of (11) when U = Ψ_k' A, V = Φ_k' B.
 //!
-//! Modules: [`terms`] (each term with its gradient), [`objective`] (their weighted sum),
-//! [`optimize`](mod@optimize) (L-BFGS with a strong-Wolfe line search, initializations).
+//! ## Scaling: weights that mean the same on every shape ([`Scaling`])
+//! Taken literally ([`Scaling::Paper`]), the weights depend on the meshes: the eigenvalues scale
+//! as 1 / area, the entries of T as 1 / area and their number as n·m, and the data term with
+//! the data's magnitude. [`Scaling::Unit`] (the default) removes every such dependence:
+//! - both shapes are rescaled to unit area (Φ̃ = √area_X Φ, masses a / area_X), so T is a
+//!   density on Y × X and C is dimensionless (orthonormal for an isometry);
+//! - data: ‖C Â − B̂‖² / s with s = (‖F‖²_{A_X} + ‖G‖²_{A_Y}) / 2 — a relative residual;
+//! - Dirichlet: eigenvalues λ_j / Σ_{l ≤ k'} λ_l, so an orthonormal C has Dirichlet energy 1
+//!   (independent of area; λ·area is scale-free by Weyl's law);
+//! - L1: Σ_ij ã^Y_i ã^X_j √(t_ij² + ξ) = ∫∫ √(t² + ξ) dy dx, the integral of the kernel over the
+//!   unit-area shapes, independent of n and m (≈ 1 for a localized, mass-preserving map); ξ is
+//!   in units of (density)², ξ = 1 meaning the density of a map spread uniformly over Y;
+//! - low norm: mass norms divided by k, ½ (‖A‖² + ‖B‖²) / k (= 1 for orthonormal factors);
+//! - commutativity: eigenvalues divided by the largest in the block, as in [`crate::fmap`].
+//!
+//! Modules: [`terms`] (each term of (11) with its gradient), [`l1`] (the blocked L1 kernel),
+//! [`objective`] (their weighted sum), [`lbfgs`] and [`optimize`](mod@optimize) (L-BFGS with a
+//! strong-Wolfe line search, initializations), [`full`], [`fixed_rank`], [`convex`], [`solve`].
 
 pub mod convex;
 pub mod fixed_rank;

@@ -20,6 +20,7 @@ use faer::Mat;
 
 use crate::error::{Error, Result};
 use crate::io::DenseMatrix;
+use crate::spectral::Basis;
 
 /// q functions on a shape with n vertices: `values` is n × q, column j is the function named
 /// `names[j]`.
@@ -137,6 +138,50 @@ pub fn localized(d: &Descriptors, segments: &Descriptors) -> Result<Descriptors>
     let values = Mat::from_fn(d.n(), q * s, |i, c| d.values[(i, c % q)] * segments.values[(i, c / q)]);
     let names = (0..q * s).map(|c| format!("{}@{}", d.names[c % q], segments.names[c / q])).collect();
     Ok(Descriptors { values, names })
+}
+
+/// The paper's rich data (§4.1): `wks` WKS and about `hkm` heat kernel maps, localized on
+/// matched segments. F_seg (n × s) and G_seg (m × s) are matched segment indicators (column j of
+/// one ↔ column j of the other). The heat kernel maps start from one seed per segment, the
+/// vertex of the segment where the scale-normalized HKS at t = 0.25/λ₁ (the persistence
+/// segmentation's function) is largest, at ⌈`hkm` / s⌉ log-spaced times each. Every function
+/// is then multiplied by every segment indicator ([`localized`]): (wks + s·⌈hkm/s⌉) · s columns.
+/// Errors on sizes that do not match or bases too small for the signatures.
+pub fn rich(
+    bx: &Basis,
+    by: &Basis,
+    f_seg: &Descriptors,
+    g_seg: &Descriptors,
+    wks: usize,
+    hkm: usize,
+) -> Result<(Descriptors, Descriptors)> {
+    if f_seg.q() != g_seg.q() || f_seg.q() == 0 {
+        return Err(Error::invalid("segments", format!("{} and {} matched segments", f_seg.q(), g_seg.q())));
+    }
+    if f_seg.n() != bx.n() || g_seg.n() != by.n() {
+        return Err(Error::invalid("segments", "the indicators do not have one row per vertex"));
+    }
+    let s = f_seg.q();
+    let per_seed = hkm.div_ceil(s).max(1);
+    let side = |b: &Basis, seg: &Descriptors| -> Result<Descriptors> {
+        let f = persistence::default_function(b)?;
+        let seeds: Vec<usize> = (0..s)
+            .map(|j| {
+                (0..b.n())
+                    .filter(|&i| seg.values[(i, j)] > 0.5)
+                    .max_by(|&a, &c| f[a].total_cmp(&f[c]))
+                    .ok_or_else(|| Error::invalid("segments", format!("segment {} is empty", seg.names[j])))
+            })
+            .collect::<Result<_>>()?;
+        let base = signatures::wks(b, wks, true)?.concat(&signatures::hkm(
+            b,
+            &seeds,
+            &signatures::hks_times(b, per_seed)?,
+            true,
+        )?)?;
+        localized(&base, seg)
+    };
+    Ok((side(bx, f_seg)?, side(by, g_seg)?))
 }
 
 #[cfg(test)]

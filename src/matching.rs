@@ -1,0 +1,252 @@
+//! The matching pipeline: data F, G on two shapes → a functional map by one of the methods →
+//! a point-to-point map X → Y, refined or not. The CLI's `match`, `demo` and the experiment
+//! programs are thin layers over [`run`].
+
+use std::time::Instant;
+
+use faer::{Mat, MatRef};
+use serde::{Deserialize, Serialize};
+
+use crate::completion::{self, CompletionOptions};
+use crate::descriptors::Descriptors;
+use crate::error::{Error, Result};
+use crate::fmap::{self, CoupledOptions, OvsjanikovOptions, PokrassOptions};
+use crate::laplacian::Laplacian;
+use crate::pointwise::{self, IcpOptions, ZoomOutOptions};
+use crate::spectral::Basis;
+
+/// The functional-map method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Ovsjanikov et al. 2012, eq. (5), with optional Laplacian commutativity.
+    Fmap,
+    /// Pokrass et al. 2013, eq. (6).
+    Pokrass,
+    /// Kovnatsky et al. 2013, eq. (7).
+    Coupled,
+    /// Kovnatsky et al. 2015, eqs. (8)–(11).
+    Completion,
+}
+
+/// Point-wise refinement.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Refine {
+    /// The point map of the method itself.
+    None,
+    /// The ICP of Ovsjanikov et al. 2012 (orthonormal C, paper §2).
+    Icp,
+    /// ZoomOut (Melzi et al. 2019).
+    Zoomout,
+}
+
+/// How the completion method's correspondence T = L Rᵀ becomes a point map X → Y.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Extraction {
+    /// Nearest neighbours of the rows of R (Φ_k' B) among the rows of L (Ψ_k' A).
+    Nn,
+    /// The largest entry of every column of T (max inner product of the rows of L and R).
+    Argmax,
+    /// Nearest neighbours of the rows of Φ_k' among the rows of Ψ_k' C (C = A Bᵀ, k' × k').
+    Fmap,
+}
+
+/// Everything [`run`] needs besides the shapes and data.
+#[derive(Clone, Debug, Serialize)]
+pub struct MatchOptions {
+    /// The method.
+    pub method: Method,
+    /// Size k of the baselines' functional maps (k × k).
+    pub k: usize,
+    /// μ_c of eq. (5)'s Laplacian commutativity (baseline `fmap` and the completion start).
+    pub commutativity: f64,
+    /// Options of Pokrass et al.
+    pub pokrass: PokrassOptions,
+    /// Options of the coupled bases.
+    pub coupled: CoupledOptions,
+    /// Options of the completion method (form, scaling, weights, k', k, optimizer).
+    pub completion: CompletionOptions,
+    /// Size of the eq. (5) map (with `commutativity`) that starts the completion method.
+    pub init_k: usize,
+    /// Point-map extraction of the completion method.
+    pub extraction: Extraction,
+    /// Refinement.
+    pub refine: Refine,
+    /// Size of the functional map the refinement of the completion method starts from (the
+    /// leading block of its k' × k' map); the baselines start from their own k × k map.
+    pub refine_k: usize,
+    /// ICP options.
+    pub icp: IcpOptions,
+    /// Final size of ZoomOut.
+    pub zoomout_to: usize,
+    /// Size increment of ZoomOut.
+    pub zoomout_step: usize,
+}
+
+impl Default for MatchOptions {
+    /// Eq. (5) with commutativity μ_c = 1e-3, k = 50, ZoomOut to 150 in steps of 1; the
+    /// completion options are the paper's scarce-data settings with [`completion::Scaling::Unit`].
+    fn default() -> Self {
+        MatchOptions {
+            method: Method::Fmap,
+            k: 50,
+            commutativity: 1e-3,
+            pokrass: PokrassOptions::default(),
+            coupled: CoupledOptions::default(),
+            completion: CompletionOptions::paper(false, completion::Scaling::Unit),
+            init_k: 50,
+            extraction: Extraction::Nn,
+            refine: Refine::Zoomout,
+            refine_k: 50,
+            icp: IcpOptions::default(),
+            zoomout_to: 150,
+            zoomout_step: 1,
+        }
+    }
+}
+
+impl MatchOptions {
+    /// The number of eigenpairs each basis must hold for these options.
+    pub fn basis_size(&self) -> usize {
+        let mut k = match self.method {
+            Method::Completion => self.completion.k_prime.max(self.init_k),
+            _ => self.k,
+        };
+        if self.refine != Refine::None {
+            k = k.max(self.refine_k);
+        }
+        if self.refine == Refine::Zoomout {
+            k = k.max(self.zoomout_to);
+        }
+        k
+    }
+}
+
+/// What [`run`] produced.
+#[derive(Clone, Debug)]
+pub struct MatchResult {
+    /// The point-to-point map X → Y (length n, vertices of Y).
+    pub map_xy: Vec<usize>,
+    /// A point-to-point map Y → X (length m): the completion method's own extracted map when
+    /// it is not refined, else the pull-back of the final functional map (for colour transfer).
+    pub map_yx: Vec<usize>,
+    /// The final functional map (between the input bases): the method's, or the refined one.
+    pub c: Mat<f64>,
+    /// The method's own functional map before refinement (k × k, or k' × k' for completion).
+    pub c_method: Mat<f64>,
+    /// The completion method's subspace coefficients (A, B), k' × k each.
+    pub coefficients: Option<(Mat<f64>, Mat<f64>)>,
+    /// The completion method's factors (L: m × r, R: n × r) with T = L Rᵀ.
+    pub factors: Option<(Mat<f64>, Mat<f64>)>,
+    /// The solver's report (JSON), for the completion method and the coupled bases.
+    pub solver: serde_json::Value,
+    /// (stage, seconds) in order.
+    pub stages: Vec<(String, f64)>,
+}
+
+fn timed<T>(stages: &mut Vec<(String, f64)>, name: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
+    let t = Instant::now();
+    let r = f()?;
+    stages.push((name.to_string(), t.elapsed().as_secs_f64()));
+    Ok(r)
+}
+
+/// Runs the method of `opts` on bases `bx` (X, n vertices), `by` (Y, m) and data F (n × q), G
+/// (m × q), then the refinement. The vertex forms of the completion method also need the
+/// Laplacians. Errors: bases smaller than [`MatchOptions::basis_size`], and those of the methods.
+#[allow(clippy::too_many_arguments)]
+pub fn run(
+    bx: &Basis,
+    by: &Basis,
+    laplacians: Option<(&Laplacian, &Laplacian)>,
+    f: &Descriptors,
+    g: &Descriptors,
+    opts: &MatchOptions,
+) -> Result<MatchResult> {
+    let need = opts.basis_size();
+    if bx.k() < need || by.k() < need {
+        return Err(Error::invalid(
+            "bases",
+            format!("these options need {need} eigenpairs per shape, the bases hold {} and {}", bx.k(), by.k()),
+        ));
+    }
+    let (phi, psi) = (bx.eigenvectors.as_ref(), by.eigenvectors.as_ref());
+    let mut stages = Vec::new();
+    let mut solver = serde_json::Value::Null;
+    let (mut coefficients, mut factors) = (None, None);
+    let ovs = OvsjanikovOptions { commutativity: opts.commutativity };
+    // The method: a functional map and, for completion, a point map of its own.
+    let (c_method, method_maps): (Mat<f64>, Option<(Vec<usize>, Vec<usize>)>) = match opts.method {
+        Method::Fmap => (timed(&mut stages, "functional map", || fmap::ovsjanikov(bx, by, f, g, opts.k, &ovs))?, None),
+        Method::Pokrass => {
+            (timed(&mut stages, "functional map", || Ok(fmap::pokrass(bx, by, f, g, opts.k, &opts.pokrass)?.0))?, None)
+        }
+        Method::Coupled => {
+            let (c, info) = timed(&mut stages, "functional map", || fmap::coupled(bx, by, f, g, opts.k, &opts.coupled))?;
+            solver = serde_json::json!({
+                "iterations": info.iterations, "data": info.data, "off_x": info.off_x, "off_y": info.off_y,
+            });
+            (c, None)
+        }
+        Method::Completion => {
+            let kp = opts.completion.k_prime;
+            let init_k = opts.init_k.min(kp);
+            let c0 = timed(&mut stages, "initial map", || fmap::ovsjanikov(bx, by, f, g, init_k, &ovs))?;
+            let s = timed(&mut stages, "completion", || {
+                completion::solve(bx, by, laplacians, f, g, c0.as_ref(), &opts.completion)
+            })?;
+            let maps = timed(&mut stages, "extraction", || extract(&s, bx, by, opts.extraction))?;
+            solver = s.report.clone();
+            coefficients = s.coefficients.clone();
+            factors = Some((s.left.clone(), s.right.clone()));
+            (s.c, Some(maps))
+        }
+    };
+    let (c, map_xy) = timed(&mut stages, "point-wise map", || -> Result<(Mat<f64>, Vec<usize>)> {
+        // The start of the refinement: the method's map, for completion its leading
+        // refine_k × refine_k block (T projected on the first refine_k eigenfunctions).
+        let (c_start, direct) = match &method_maps {
+            Some((map_xy, _)) => {
+                let kr = opts.refine_k.min(c_method.nrows());
+                (c_method.submatrix(0, 0, kr, kr).to_owned(), Some(map_xy.clone()))
+            }
+            None => (c_method.clone(), None),
+        };
+        match opts.refine {
+            Refine::None => match direct {
+                Some(map) => Ok((c_method.clone(), map)),
+                None => Ok((c_method.clone(), pointwise::map_from_fmap(phi, psi, c_method.as_ref())?)),
+            },
+            Refine::Icp => pointwise::icp(phi, psi, c_start.as_ref(), &opts.icp),
+            Refine::Zoomout => {
+                let o = ZoomOutOptions { k_final: opts.zoomout_to.max(c_start.nrows()), step: opts.zoomout_step };
+                pointwise::zoomout(phi, psi, &by.mass, c_start.as_ref(), &o)
+            }
+        }
+    })?;
+    let map_yx = match (&method_maps, opts.refine) {
+        (Some((_, map_yx)), Refine::None) => map_yx.clone(),
+        _ => timed(&mut stages, "map Y → X", || pointwise::map_yx_from_fmap(phi, psi, c.as_ref()))?,
+    };
+    Ok(MatchResult { map_xy, map_yx, c, c_method, coefficients, factors, solver, stages })
+}
+
+/// The completion method's point maps X → Y and Y → X by `how`.
+fn extract(
+    s: &completion::Solution,
+    bx: &Basis,
+    by: &Basis,
+    how: Extraction,
+) -> Result<(Vec<usize>, Vec<usize>)> {
+    let (l, r): (MatRef<f64>, MatRef<f64>) = (s.left.as_ref(), s.right.as_ref());
+    match how {
+        Extraction::Nn => Ok((pointwise::nearest_neighbors(l, r)?, pointwise::nearest_neighbors(r, l)?)),
+        Extraction::Argmax => Ok((pointwise::max_inner_product(l, r)?, pointwise::max_inner_product(r, l)?)),
+        Extraction::Fmap => {
+            let (phi, psi) = (bx.eigenvectors.as_ref(), by.eigenvectors.as_ref());
+            Ok((pointwise::map_from_fmap(phi, psi, s.c.as_ref())?, pointwise::map_yx_from_fmap(phi, psi, s.c.as_ref())?))
+        }
+    }
+}
