@@ -519,7 +519,7 @@ impl Work {
 /// (connectivity and edge lengths, O(n)); each query runs one propagation from its source.
 ///
 /// Cost: the number of windows grows like n^1.5 on typical meshes (no approximate merging):
-/// ≈ 10⁵ windows and 0.045 s for a full solve on a 5,000-vertex FAUST mesh, ≈ 1 s on a
+/// ≈ 10⁵ windows and ≈ 0.05 s for a full solve on a 5,000-vertex FAUST mesh, ≈ 1 s on a
 /// 28,000-vertex one. Point-to-point queries stop early, so their cost grows with the distance
 /// between the two points: cheap for an evaluation of a good map, up to a full solve per pair
 /// for far-apart points (5,000 random far pairs on FAUST: ≈ 20 s on 2 cores).

@@ -13,10 +13,11 @@
 //! Measured with `examples/geodesic_timing.rs` on the bundled FAUST `tr_reg_001` (5,000
 //! vertices, √area = 0.759), 2 cores shared with other jobs:
 //!
-//! - exact single-source solve (all vertices): 0.045 s median, ≈ 10⁵ windows; pairs near each
-//!   other as in an evaluation (5,000 template points, predictions 0–15 edges away): 0.39 s for
-//!   all 5,000, and 0.35 s more for the mirrored pairs capped at the direct distance; on TOSCA
-//!   `cat0` (27,894 vertices) a full solve takes ≈ 1 s (the window count grows like n^1.5);
+//! - exact single-source solve (all vertices): 0.045–0.065 s median over runs, ≈ 10⁵ windows;
+//!   pairs near each other as in an evaluation (5,000 template points, predictions 0–15 edges
+//!   away): 0.4–0.7 s for all 5,000, and as much again for the mirrored pairs capped at the
+//!   direct distance; on TOSCA `cat0` (27,894 vertices) a full solve takes 0.8–1.1 s (the window
+//!   count grows like n^1.5) and the 5,000 near pairs 0.9–1.0 s;
 //! - errors of the approximations against the exact distances (5 sources spread over the body;
 //!   relative error |d − d_exact| / d_exact over the vertices farther than 1 % / 10 % of √area
 //!   from the source):

@@ -368,3 +368,84 @@ fn non_manifold_book_unfolds_pages_pairwise() {
     assert!(worst < 1e-9, "max relative error {worst:e}");
     eprintln!("book with three pages: max relative error {worst:e}");
 }
+
+#[test]
+fn regular_grid_with_collinear_vertices_is_exact() {
+    // Rays through rows of collinear vertices: the degenerate case of window splitting.
+    let mesh = crate::primitives::rectangle(2.0, 1.0, 40, 20);
+    let g = ExactGeodesics::new(&mesh).unwrap();
+    let mut worst: f64 = 0.0;
+    for s in [0usize, 20, 10 * 41 + 20] {
+        let d = g.distances_from_vertex(s).unwrap();
+        let ps = mesh.vertices()[s];
+        for (i, p) in mesh.vertices().iter().enumerate() {
+            if i != s {
+                let e = norm3(ps, *p);
+                worst = worst.max((d[i] - e).abs() / e);
+            }
+        }
+    }
+    eprintln!("regular grid: max relative error {worst:e}");
+    assert!(worst <= 1e-9, "max relative error {worst:e}");
+}
+
+#[test]
+fn bowtie_vertex_joins_two_sheets() {
+    // Two unit squares in different planes touching only at the vertex v = (0, 0, 0):
+    // a non-manifold vertex, the only way from one sheet to the other.
+    let k = 6u32;
+    let mut v: Vec<[f64; 3]> = vec![[0.0; 3]];
+    let mut f = Vec::new();
+    let mut grids = vec![];
+    for sheet in 0..2 {
+        let mut ids = vec![vec![0u32; (k + 1) as usize]; (k + 1) as usize];
+        for i in 0..=k {
+            for j in 0..=k {
+                ids[i as usize][j as usize] = if i == 0 && j == 0 {
+                    0
+                } else {
+                    let (a, b) = (i as f64 / k as f64, j as f64 / k as f64);
+                    v.push(if sheet == 0 { [a, b, 0.0] } else { [-a, 0.0, -b] });
+                    (v.len() - 1) as u32
+                };
+            }
+        }
+        for i in 0..k as usize {
+            for j in 0..k as usize {
+                f.extend([[ids[i][j], ids[i + 1][j], ids[i + 1][j + 1]], [ids[i][j], ids[i + 1][j + 1], ids[i][j + 1]]]);
+            }
+        }
+        grids.push(ids);
+    }
+    let mesh = TriMesh::new(v, f).unwrap();
+    let g = ExactGeodesics::new(&mesh).unwrap();
+    assert!(g.topo.bend[0]);
+    let (s, t) = (grids[0][4][3] as usize, grids[1][5][2] as usize);
+    let (ps, pt) = (mesh.vertices()[s], mesh.vertices()[t]);
+    let exact = norm3(ps, [0.0; 3]) + norm3([0.0; 3], pt);
+    let d = g.distance(s, t).unwrap();
+    assert!((d - exact).abs() <= 1e-12 * exact, "{d} vs {exact}");
+}
+
+#[test]
+fn closed_cones_touching_at_their_apex() {
+    // Two closed thin tetrahedra sharing only their apex (total angle there ≈ 2 × 58° < 2π):
+    // a non-manifold vertex found by its two fans.
+    let mut v = vec![[0.0, 0.0, 0.0]];
+    let mut f = Vec::new();
+    for side in [1.0, -1.0] {
+        let b = v.len() as u32;
+        for k in 0..3 {
+            let t = k as f64 * std::f64::consts::TAU / 3.0;
+            v.push([0.2 * t.cos(), 0.2 * t.sin(), side]);
+        }
+        f.extend([[0, b, b + 1], [0, b + 1, b + 2], [0, b + 2, b], [b, b + 2, b + 1]]);
+    }
+    let mesh = TriMesh::new(v, f).unwrap();
+    let g = ExactGeodesics::new(&mesh).unwrap();
+    assert!(g.topo.bend[0]);
+    let (ps, pt) = (mesh.vertices()[1], mesh.vertices()[4]);
+    let exact = norm3(ps, [0.0; 3]) + norm3([0.0; 3], pt);
+    let d = g.distance(1, 4).unwrap();
+    assert!((d - exact).abs() <= 1e-12 * exact, "{d} vs {exact}");
+}
