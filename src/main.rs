@@ -332,7 +332,9 @@ struct EvalArgs {
 
 #[derive(Clone, Copy, PartialEq, ValueEnum)]
 enum GeodesicsChoice {
-    /// Exact polyhedral distances (MMP window propagation; early-terminated per template point).
+    /// Exact polyhedral distances (MMP window propagation), each template point's propagation
+    /// stopped at its predicted point: fast for good maps, up to a full solve per badly mapped
+    /// point for poor ones (≈ 0.05 s each on 5,000 vertices, ≈ 1 s on 28,000).
     Exact,
     /// The heat method (approximate, ~1–3% mean relative error).
     Heat,

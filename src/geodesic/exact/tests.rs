@@ -412,7 +412,10 @@ fn bowtie_vertex_joins_two_sheets() {
         }
         for i in 0..k as usize {
             for j in 0..k as usize {
-                f.extend([[ids[i][j], ids[i + 1][j], ids[i + 1][j + 1]], [ids[i][j], ids[i + 1][j + 1], ids[i][j + 1]]]);
+                f.extend([
+                    [ids[i][j], ids[i + 1][j], ids[i + 1][j + 1]],
+                    [ids[i][j], ids[i + 1][j + 1], ids[i][j + 1]],
+                ]);
             }
         }
         grids.push(ids);
