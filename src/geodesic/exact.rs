@@ -441,12 +441,6 @@ impl Work {
         pieces.clear();
         extra.clear();
         pieces.push((b0, b1));
-        if pieces.is_empty() {
-            self.pieces = pieces;
-            self.upieces = upieces;
-            self.extra = extra;
-            return;
-        }
         let mut list = std::mem::take(&mut self.edge_w[e]);
         for u in list.iter_mut() {
             if u.state == State::Dead {
