@@ -12,6 +12,37 @@ pub trait Distances {
     fn n_vertices(&self) -> usize;
     /// m × sources.len() distances (in Y's units).
     fn distances_from(&self, sources: &[usize]) -> Result<Mat<f64>>;
+    /// d(s, t) for every pair (s, t) of vertices, in Y's units (`INFINITY` when t cannot be
+    /// reached from s). The default runs [`Distances::distances_from`] on the distinct sources,
+    /// 64 at a time; solvers with early termination override it.
+    fn pair_distances(&self, pairs: &[(usize, usize)]) -> Result<Vec<f64>> {
+        let m = self.n_vertices();
+        if let Some(&(s, t)) = pairs.iter().find(|&&(s, t)| s >= m || t >= m) {
+            return Err(Error::invalid("pair", format!("({s}, {t}) is out of range (m = {m})")));
+        }
+        let mut sources: Vec<usize> = pairs.iter().map(|p| p.0).collect();
+        sources.sort_unstable();
+        sources.dedup();
+        let mut out = vec![0.0; pairs.len()];
+        for chunk in sources.chunks(64) {
+            let d = self.distances_from(chunk)?;
+            for (i, &(s, t)) in pairs.iter().enumerate() {
+                if let Ok(j) = chunk.binary_search(&s) {
+                    out[i] = d[(t, j)];
+                }
+            }
+        }
+        Ok(out)
+    }
+    /// min(d(s, t), cap) for every pair and its cap (`caps.len() == pairs.len()`): distances
+    /// only matter below the cap, which lets early-terminating solvers stop sooner. The default
+    /// takes [`Distances::pair_distances`] and caps it.
+    fn pair_distances_capped(&self, pairs: &[(usize, usize)], caps: &[f64]) -> Result<Vec<f64>> {
+        if caps.len() != pairs.len() {
+            return Err(Error::invalid("caps", format!("{} caps for {} pairs", caps.len(), pairs.len())));
+        }
+        Ok(self.pair_distances(pairs)?.into_iter().zip(caps).map(|(d, &c)| d.min(c)).collect())
+    }
 }
 
 impl Distances for crate::geodesic::HeatGeodesics<'_> {
@@ -20,6 +51,55 @@ impl Distances for crate::geodesic::HeatGeodesics<'_> {
     }
     fn distances_from(&self, sources: &[usize]) -> Result<Mat<f64>> {
         self.distances(sources)
+    }
+}
+
+/// Exact polyhedral distances; point-to-point queries stop early (see
+/// [`crate::geodesic::ExactGeodesics::pair_distances`]).
+impl Distances for crate::geodesic::ExactGeodesics {
+    fn n_vertices(&self) -> usize {
+        self.n()
+    }
+    fn distances_from(&self, sources: &[usize]) -> Result<Mat<f64>> {
+        self.distances(sources)
+    }
+    fn pair_distances(&self, pairs: &[(usize, usize)]) -> Result<Vec<f64>> {
+        crate::geodesic::ExactGeodesics::pair_distances(self, pairs)
+    }
+    fn pair_distances_capped(&self, pairs: &[(usize, usize)], caps: &[f64]) -> Result<Vec<f64>> {
+        crate::geodesic::ExactGeodesics::pair_distances_capped(self, pairs, caps)
+    }
+}
+
+/// Graph (Dijkstra) distances: mesh edges, kNN graphs of point clouds, any graph; point-to-point
+/// queries stop early.
+impl Distances for crate::geodesic::GraphGeodesics {
+    fn n_vertices(&self) -> usize {
+        self.n()
+    }
+    fn distances_from(&self, sources: &[usize]) -> Result<Mat<f64>> {
+        self.distances(sources)
+    }
+    fn pair_distances(&self, pairs: &[(usize, usize)]) -> Result<Vec<f64>> {
+        crate::geodesic::GraphGeodesics::pair_distances(self, pairs)
+    }
+    fn pair_distances_capped(&self, pairs: &[(usize, usize)], caps: &[f64]) -> Result<Vec<f64>> {
+        crate::geodesic::GraphGeodesics::pair_distances_capped(self, pairs, caps)
+    }
+}
+
+impl<D: Distances + ?Sized> Distances for Box<D> {
+    fn n_vertices(&self) -> usize {
+        (**self).n_vertices()
+    }
+    fn distances_from(&self, sources: &[usize]) -> Result<Mat<f64>> {
+        (**self).distances_from(sources)
+    }
+    fn pair_distances(&self, pairs: &[(usize, usize)]) -> Result<Vec<f64>> {
+        (**self).pair_distances(pairs)
+    }
+    fn pair_distances_capped(&self, pairs: &[(usize, usize)], caps: &[f64]) -> Result<Vec<f64>> {
+        (**self).pair_distances_capped(pairs, caps)
     }
 }
 
@@ -53,6 +133,11 @@ impl GroundTruth {
 
 /// Hard error (12) of a point-to-point map X → Y (`map_xy`, length n) at every template point:
 /// d_Y(map(x_i), y_i) / √area(Y); with `y_sym`, the smaller of that and d_Y(map(x_i), y_sym_i).
+///
+/// Distances come from [`Distances::pair_distances`] (pairs (y_i, map(x_i))), the mirrored ones
+/// from [`Distances::pair_distances_capped`] capped at the direct distance: with an
+/// early-terminating solver ([`crate::geodesic::ExactGeodesics`]) only the neighbourhood of
+/// each template point is explored.
 pub fn hard_errors(map_xy: &[usize], gt: &GroundTruth, dist: &dyn Distances, area_y: f64) -> Result<Vec<f64>> {
     let m = dist.n_vertices();
     gt.check(map_xy.len(), m)?;
@@ -63,15 +148,19 @@ pub fn hard_errors(map_xy: &[usize], gt: &GroundTruth, dist: &dyn Distances, are
         return Err(Error::invalid("area", format!("area of Y must be positive, got {area_y}")));
     }
     let norm = area_y.sqrt();
-    let errors_to = |targets: &[usize]| -> Result<Vec<f64>> {
-        let d = dist.distances_from(targets)?;
-        Ok((0..targets.len()).map(|i| d[(map_xy[gt.x[i]], i)] / norm).collect())
+    // Distances from the true vertex to the predicted one; the mirrored distance only matters
+    // below the direct one, so it is capped there.
+    let pairs =
+        |truth: &[usize]| -> Vec<(usize, usize)> { truth.iter().zip(&gt.x).map(|(&t, &x)| (t, map_xy[x])).collect() };
+    let direct = dist.pair_distances(&pairs(&gt.y))?;
+    let best = match &gt.y_sym {
+        None => direct,
+        Some(s) => {
+            let mirrored = dist.pair_distances_capped(&pairs(s), &direct)?;
+            direct.iter().zip(mirrored).map(|(a, b)| a.min(b)).collect()
+        }
     };
-    let direct = errors_to(&gt.y)?;
-    match &gt.y_sym {
-        None => Ok(direct),
-        Some(s) => Ok(direct.iter().zip(errors_to(s)?).map(|(a, b)| a.min(b)).collect()),
-    }
+    Ok(best.into_iter().map(|d| d / norm).collect())
 }
 
 /// Soft error (13) of a functional correspondence: `columns` (m × s) holds t_i = T δ_{x_i} for
@@ -198,6 +287,60 @@ mod tests {
         let e = hard_errors(&vec![0; n], &gt, &g, 4.0).unwrap();
         let d = g.distances(&[5, 9]).unwrap();
         assert!((e[0] - d[(0, 0)] / 2.0).abs() < 1e-12 && (e[1] - d[(0, 1)] / 2.0).abs() < 1e-12);
+    }
+
+    /// Only the required methods: exercises the default `pair_distances*`.
+    struct FullColumns<'a>(&'a crate::geodesic::ExactGeodesics);
+    impl Distances for FullColumns<'_> {
+        fn n_vertices(&self) -> usize {
+            self.0.n()
+        }
+        fn distances_from(&self, sources: &[usize]) -> Result<Mat<f64>> {
+            self.0.distances(sources)
+        }
+    }
+
+    #[test]
+    fn early_terminated_pairs_give_the_same_errors_as_full_columns() {
+        use crate::geodesic::{ExactGeodesics, GraphGeodesics};
+        let mesh = crate::primitives::bumpy_sphere(3);
+        let n = mesh.n_vertices();
+        let exact = ExactGeodesics::new(&mesh).unwrap();
+        let full = FullColumns(&exact);
+        // A map that moves every vertex a few edges away, and a "mirror" ground truth.
+        let edges = mesh.edges();
+        let mut map: Vec<usize> = (0..n).collect();
+        for _ in 0..3 {
+            for &[a, b] in &edges {
+                if (a + 3 * b) % 5 == 0 {
+                    map.swap(a as usize, b as usize);
+                }
+            }
+        }
+        let template: Vec<usize> = (0..n).step_by(3).collect();
+        let sym: Vec<usize> = template.iter().map(|&i| (i * 7 + 11) % n).collect();
+        let gt = GroundTruth { x: template.clone(), y: template.clone(), y_sym: Some(sym) };
+        let area = mesh.total_area();
+        let a = hard_errors(&map, &gt, &exact, area).unwrap();
+        let b = hard_errors(&map, &gt, &full, area).unwrap();
+        assert!(a.iter().any(|&e| e > 0.0));
+        for (x, y) in a.iter().zip(&b) {
+            assert!((x - y).abs() <= 1e-12 * y.max(1e-300), "{x} vs {y}");
+        }
+        let pairs: Vec<(usize, usize)> = template.iter().map(|&i| (i, map[i])).collect();
+        let caps = vec![0.3; pairs.len()];
+        let (p, q) =
+            (exact.pair_distances_capped(&pairs, &caps).unwrap(), full.pair_distances_capped(&pairs, &caps).unwrap());
+        assert!(p.iter().zip(&q).all(|(x, y)| (x - y).abs() <= 1e-12));
+        // Dijkstra: its own early termination agrees with its full columns.
+        let dij = GraphGeodesics::mesh_edges(&mesh).unwrap();
+        let cols = dij.distances(&template).unwrap();
+        let got = Distances::pair_distances(&dij, &pairs).unwrap();
+        for (i, &(_, t)) in pairs.iter().enumerate() {
+            assert_eq!(got[i], cols[(t, i)]);
+        }
+        assert!(full.pair_distances(&[(0, n)]).is_err());
+        assert!(full.pair_distances_capped(&[(0, 1)], &[]).is_err());
     }
 
     #[test]

@@ -628,3 +628,67 @@ fn match_data_specs_and_refinements() {
     );
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn eval_offers_exact_heat_and_dijkstra_geodesics() {
+    // A map that sends template point i of X to its ground-truth counterpart on Y, except every
+    // tenth to the mirrored counterpart; every other vertex to vertex 0.
+    let d = tmp("eval-geodesics");
+    let read = |name: &str| -> Vec<usize> {
+        std::fs::read_to_string(data(name)).unwrap().lines().map(|l| l.trim().parse::<usize>().unwrap() - 1).collect()
+    };
+    let (x, y, y_sym) = (read("tr_reg_000.vts"), read("tr_reg_001.vts"), read("tr_reg_001.sym.vts"));
+    let mut map = vec![0usize; 4999];
+    for i in 0..x.len() {
+        map[x[i]] = if i % 10 != 0 { y[i] } else { y_sym[i] };
+    }
+    let map_file = d.join("map.txt");
+    std::fs::write(&map_file, map.iter().map(|j| format!("{j}\n")).collect::<String>()).unwrap();
+    let (xs, ys, gx, gy, gs) = (
+        data("tr_reg_000.off"),
+        data("tr_reg_001.off"),
+        data("tr_reg_000.vts"),
+        data("tr_reg_001.vts"),
+        data("tr_reg_001.sym.vts"),
+    );
+    let eval = |method: &str, sym: bool| -> serde_json::Value {
+        let mut args = vec![
+            "eval",
+            "--source",
+            xs.to_str().unwrap(),
+            "--target",
+            ys.to_str().unwrap(),
+            "--map",
+            map_file.to_str().unwrap(),
+            "--gt-source",
+            gx.to_str().unwrap(),
+            "--gt-target",
+            gy.to_str().unwrap(),
+            "--geodesics",
+            method,
+            "--json",
+        ];
+        if sym {
+            args.extend(["--gt-target-sym", gs.to_str().unwrap()]);
+        }
+        let out = run(&args);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let mean = |v: &serde_json::Value| v["summary"]["mean"].as_f64().unwrap();
+    let exact = eval("exact", false);
+    assert!(exact["geodesics"].as_str().unwrap().contains("exact"));
+    let (e, h, k) = (mean(&exact), mean(&eval("heat", false)), mean(&eval("dijkstra", false)));
+    assert!(e > 0.01 && k >= e && k < 1.15 * e && (h - e).abs() < 0.05 * e, "exact {e}, heat {h}, dijkstra {k}");
+    // With flips allowed only template points sharing a vertex of X with another one (whose
+    // map entry was overwritten) keep an error.
+    for method in ["exact", "dijkstra"] {
+        let m = mean(&eval(method, true));
+        assert!(m < 0.1 * e, "{method} with symmetry: {m} (without: {e})");
+    }
+    let mut bad = vec!["eval", "--source", xs.to_str().unwrap(), "--target", ys.to_str().unwrap()];
+    bad.extend(["--map", map_file.to_str().unwrap(), "--gt-source", gx.to_str().unwrap()]);
+    bad.extend(["--gt-target", gy.to_str().unwrap(), "--geodesics", "straight"]);
+    let out = run(&bad);
+    assert!(!out.status.success() && text(&out.stderr).contains("straight"));
+}

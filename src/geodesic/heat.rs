@@ -1,5 +1,3 @@
-//! Geodesic distances on triangle meshes.
-//!
 //! [`HeatGeodesics`]: the heat method (Crane, Weischedel, Wardetzky 2013), a fast approximation:
 //! 1. integrate the heat flow for a short time t = h² (h the mean edge length):
 //!    (A + t W) u = δ_s;
@@ -12,8 +10,8 @@
 //! the mesh's units. Accuracy, measured in the tests below (points farther than 0.1–0.2 from the
 //! source): mean relative error 0.9–1.0 % on the unit icosphere with 2,562 vertices (three
 //! sources) and 0.8 % on a 2 × 1 rectangle with 3,321 vertices; errors are larger within a few
-//! edges of the source and near boundaries (Neumann boundary conditions). An exact polyhedral
-//! method comes with the evaluation issue.
+//! edges of the source and near boundaries (Neumann boundary conditions). Against the exact polyhedral distances of
+//! [`super::ExactGeodesics`] see the measurements in the [module documentation](super).
 
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::Llt;
