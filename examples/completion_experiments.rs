@@ -12,8 +12,8 @@
 //! - CONFIG: see `config()` below, parts joined by `+`, e.g. `fmap+icp`, `comp`, `comp+mc=1e-3+icp`.
 //!
 //! Prints one line per (pair, config): mean hard error ×100 with symmetric flips allowed, the
-//! fraction ≤ 0.05 and ≤ 0.10, the solver iterations and seconds. Geodesics: exact when built
-//! with the exact solver, else the heat method. Bases cached in `target/exp-cache`.
+//! fraction ≤ 0.05 and ≤ 0.10, the solver iterations and seconds. Exact geodesics (MMP). Bases
+//! cached in `target/exp-cache`.
 //! `$FAUST_R` overrides the data folder (default ../shared/data/faust_r).
 
 use std::collections::HashMap;
@@ -245,15 +245,23 @@ fn main() -> Result<()> {
         .skip(first)
         .take(count)
         .collect();
-    println!("# data {kind}; pairs {first}..{}; mean error x100 (symmetric), <=0.05, <=0.10, iterations, seconds", first + count);
+    println!(
+        "# data {kind}; pairs {first}..{}; mean error x100 (symmetric), <=0.05, <=0.10, iterations, seconds",
+        first + count
+    );
     let mut sums: HashMap<String, (f64, usize)> = HashMap::new();
     for (nx, ny) in &pairs {
         let x = load(&dir, nx, &cache, 350)?;
         let y = load(&dir, ny, &cache, 350)?;
         let (f, g) = data(kind, &dir, (nx, &x), (ny, &y))?;
-        let vts = |n: &str, s: &str, size: usize| read_index_list_file(&dir.join(format!("corres/{n}{s}.vts")), true, size);
-        let gt = GroundTruth { x: vts(nx, "", x.basis.n())?, y: vts(ny, "", y.basis.n())?, y_sym: Some(vts(ny, ".sym", y.basis.n())?) };
-        let geo = funcorr::geodesic::HeatGeodesics::new(&y.mesh)?;
+        let vts =
+            |n: &str, s: &str, size: usize| read_index_list_file(&dir.join(format!("corres/{n}{s}.vts")), true, size);
+        let gt = GroundTruth {
+            x: vts(nx, "", x.basis.n())?,
+            y: vts(ny, "", y.basis.n())?,
+            y_sym: Some(vts(ny, ".sym", y.basis.n())?),
+        };
+        let geo = funcorr::geodesic::ExactGeodesics::new(&y.mesh)?;
         for name in &configs {
             let opts = config(name, f.q())?;
             let t = Instant::now();

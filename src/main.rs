@@ -383,9 +383,10 @@ struct MatchArgs {
     /// Point-map extraction of the completion method.
     #[arg(long, value_enum, default_value = "nn")]
     extract: ExtractChoice,
-    /// Point-wise refinement.
-    #[arg(long, value_enum, default_value = "zoomout")]
-    refine: Refine,
+    /// Point-wise refinement (default: zoomout for rich data, icp for scarce data, as measured
+    /// best on faust_r, see EXPERIMENTS.md).
+    #[arg(long, value_enum)]
+    refine: Option<Refine>,
     /// Size of the map the refinement of the completion method starts from.
     #[arg(long, default_value_t = 50)]
     refine_k: usize,
@@ -1012,11 +1013,9 @@ fn pair_data(
             let g = desc::Descriptors::from_matrix(&funcorr::io::read_matrix(&b)?, y.n_vertices())?;
             Ok((f, g))
         }
-        _ => {
-            Err(bad("unknown kind (wks:N, hks:N, wks+hks:N, segments:A,B, persistence, mser, landmarks:F, rich, \
+        _ => Err(bad("unknown kind (wks:N, hks:N, wks+hks:N, segments:A,B, persistence, mser, landmarks:F, rich, \
                      rich:A,B, matrix:F,G)"
-                .into()))
-        }
+            .into())),
     }
 }
 
@@ -1071,7 +1070,13 @@ fn match_options(args: &MatchArgs) -> Result<funcorr::matching::MatchOptions> {
         OptimizerChoice::Rcg => Optimizer::Rcg,
     });
     let p = &mut completion.params;
-    for (slot, v) in [(&mut p.mu1, args.mu1), (&mut p.mu2, args.mu2), (&mut p.mu3, args.mu3), (&mut p.mu4, args.mu4), (&mut p.xi, args.xi)] {
+    for (slot, v) in [
+        (&mut p.mu1, args.mu1),
+        (&mut p.mu2, args.mu2),
+        (&mut p.mu3, args.mu3),
+        (&mut p.mu4, args.mu4),
+        (&mut p.xi, args.xi),
+    ] {
         if let Some(v) = v {
             *slot = v;
         }
@@ -1108,7 +1113,7 @@ fn match_options(args: &MatchArgs) -> Result<funcorr::matching::MatchOptions> {
             ExtractChoice::Argmax => Extraction::Argmax,
             ExtractChoice::Fmap => Extraction::Fmap,
         },
-        refine: match args.refine {
+        refine: match args.refine.unwrap_or(if is_rich(&args.data) { Refine::Zoomout } else { Refine::Icp }) {
             Refine::None => funcorr::matching::Refine::None,
             Refine::Icp => funcorr::matching::Refine::Icp,
             Refine::Zoomout => funcorr::matching::Refine::Zoomout,
@@ -1198,7 +1203,12 @@ fn match_shapes(args: &MatchArgs) -> Result<()> {
             write_mat_npy(&out.join("B.npy"), b)?;
         }
         for &i in &args.soft {
-            let t = funcorr::pointwise::soft_map_column(bx.eigenvectors.as_ref(), by.eigenvectors.as_ref(), r.c_method.as_ref(), i)?;
+            let t = funcorr::pointwise::soft_map_column(
+                bx.eigenvectors.as_ref(),
+                by.eigenvectors.as_ref(),
+                r.c_method.as_ref(),
+                i,
+            )?;
             funcorr::io::npy::write_npy_matrix(
                 &out.join(format!("soft_{i}.npy")),
                 &funcorr::io::DenseMatrix { rows: t.len(), cols: 1, data: t.clone() },
@@ -1330,7 +1340,10 @@ fn demo_segments(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&TriMesh, 
 
 /// The defaults of `funcorr match`, from its own argument parser.
 fn default_match_args() -> Result<MatchArgs> {
-    match Cli::try_parse_from(["funcorr", "match", "X", "Y", "-o", "unused"]).map_err(|e| Error::invalid("demo", e.to_string()))?.command {
+    match Cli::try_parse_from(["funcorr", "match", "X", "Y", "-o", "unused"])
+        .map_err(|e| Error::invalid("demo", e.to_string()))?
+        .command
+    {
         Command::Match(args) => Ok(args),
         _ => Err(Error::invalid("demo", "could not build the match defaults")),
     }
@@ -1352,7 +1365,7 @@ fn demo_match(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&TriMesh, &Ba
     let vts = |i: usize, n: usize| {
         funcorr::io::indices::read_index_list(DEMO_VTS[i].as_bytes(), Path::new("demo.vts"), true, n)
     };
-    let geo = funcorr::geodesic::HeatGeodesics::new(my)?;
+    let geo = funcorr::geodesic::ExactGeodesics::new(my)?;
     let gt = GroundTruth { x: vts(0, mx.n_vertices())?, y: vts(1, my.n_vertices())?, y_sym: None };
     let plain = summarize(&hard_errors(&r.map_xy, &gt, &geo, my.total_area())?);
     let gt = GroundTruth { y_sym: Some(vts(3, my.n_vertices())?), ..gt };
@@ -1362,7 +1375,7 @@ fn demo_match(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&TriMesh, &Ba
         outln!("  {name}: {secs:.2} s");
     }
     outln!(
-        "  geodesic error (Princeton protocol, heat-method geodesics): mean ×100 = {:.2}, {:.1}% of points ≤ 0.05, {:.1}% ≤ 0.10",
+        "  geodesic error (Princeton protocol, exact geodesics): mean ×100 = {:.2}, {:.1}% of points ≤ 0.05, {:.1}% ≤ 0.10",
         100.0 * plain.mean,
         100.0 * plain.at_005,
         100.0 * plain.at_010

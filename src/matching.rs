@@ -146,6 +146,9 @@ pub struct MatchResult {
     pub stages: Vec<(String, f64)>,
 }
 
+/// Point maps X → Y (length n) and Y → X (length m).
+type MapPair = (Vec<usize>, Vec<usize>);
+
 fn timed<T>(stages: &mut Vec<(String, f64)>, name: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
     let t = Instant::now();
     let r = f()?;
@@ -178,13 +181,14 @@ pub fn run(
     let (mut coefficients, mut factors) = (None, None);
     let ovs = OvsjanikovOptions { commutativity: opts.commutativity };
     // The method: a functional map and, for completion, a point map of its own.
-    let (c_method, method_maps): (Mat<f64>, Option<(Vec<usize>, Vec<usize>)>) = match opts.method {
+    let (c_method, method_maps): (Mat<f64>, Option<MapPair>) = match opts.method {
         Method::Fmap => (timed(&mut stages, "functional map", || fmap::ovsjanikov(bx, by, f, g, opts.k, &ovs))?, None),
         Method::Pokrass => {
             (timed(&mut stages, "functional map", || Ok(fmap::pokrass(bx, by, f, g, opts.k, &opts.pokrass)?.0))?, None)
         }
         Method::Coupled => {
-            let (c, info) = timed(&mut stages, "functional map", || fmap::coupled(bx, by, f, g, opts.k, &opts.coupled))?;
+            let (c, info) =
+                timed(&mut stages, "functional map", || fmap::coupled(bx, by, f, g, opts.k, &opts.coupled))?;
             solver = serde_json::json!({
                 "iterations": info.iterations, "data": info.data, "off_x": info.off_x, "off_y": info.off_y,
             });
@@ -234,19 +238,17 @@ pub fn run(
 }
 
 /// The completion method's point maps X → Y and Y → X by `how`.
-fn extract(
-    s: &completion::Solution,
-    bx: &Basis,
-    by: &Basis,
-    how: Extraction,
-) -> Result<(Vec<usize>, Vec<usize>)> {
+fn extract(s: &completion::Solution, bx: &Basis, by: &Basis, how: Extraction) -> Result<(Vec<usize>, Vec<usize>)> {
     let (l, r): (MatRef<f64>, MatRef<f64>) = (s.left.as_ref(), s.right.as_ref());
     match how {
         Extraction::Nn => Ok((pointwise::nearest_neighbors(l, r)?, pointwise::nearest_neighbors(r, l)?)),
         Extraction::Argmax => Ok((pointwise::max_inner_product(l, r)?, pointwise::max_inner_product(r, l)?)),
         Extraction::Fmap => {
             let (phi, psi) = (bx.eigenvectors.as_ref(), by.eigenvectors.as_ref());
-            Ok((pointwise::map_from_fmap(phi, psi, s.c.as_ref())?, pointwise::map_yx_from_fmap(phi, psi, s.c.as_ref())?))
+            Ok((
+                pointwise::map_from_fmap(phi, psi, s.c.as_ref())?,
+                pointwise::map_yx_from_fmap(phi, psi, s.c.as_ref())?,
+            ))
         }
     }
 }

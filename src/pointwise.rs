@@ -124,10 +124,19 @@ fn check_fmap(phi: MatRef<f64>, psi: MatRef<f64>, c: MatRef<f64>) -> Result<usiz
 /// The functional map C (k × k, X → Y) of the pull-back by a point-to-point map Y → X
 /// (`map_yx`, length m): C = Ψ_kᵀ A_Y Φ_k(map_yx), the coefficients on Y of f ∘ map_yx for the
 /// basis functions f of X. `mass_y` is A_Y (length m).
-pub fn fmap_from_map_yx(phi: MatRef<f64>, psi: MatRef<f64>, mass_y: &[f64], map_yx: &[usize], k: usize) -> Result<Mat<f64>> {
+pub fn fmap_from_map_yx(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    mass_y: &[f64],
+    map_yx: &[usize],
+    k: usize,
+) -> Result<Mat<f64>> {
     let (n, m) = (phi.nrows(), psi.nrows());
     if map_yx.len() != m || mass_y.len() != m {
-        return Err(Error::invalid("map", format!("{} map entries and {} weights for {m} vertices of Y", map_yx.len(), mass_y.len())));
+        return Err(Error::invalid(
+            "map",
+            format!("{} map entries and {} weights for {m} vertices of Y", map_yx.len(), mass_y.len()),
+        ));
     }
     if k == 0 || k > phi.ncols() || k > psi.ncols() {
         return Err(Error::invalid("k", format!("need 1 ≤ k ≤ {} and {}, got {k}", phi.ncols(), psi.ncols())));

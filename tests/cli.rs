@@ -241,12 +241,50 @@ fn match_every_method_and_its_outputs() {
     for (method, extra) in [
         ("fmap", vec!["--refine", "icp", "-k", "20", "--kprime", "40", "--soft", "0,100"]),
         ("pokrass", vec!["--refine", "none", "-k", "15", "--kprime", "30"]),
-        ("coupled", vec!["--refine", "zoomout", "-k", "15", "--kprime", "40", "--zoomout-to", "40", "--zoomout-step", "5"]),
-        ("completion", vec!["--refine", "none", "-k", "15", "--kprime", "30", "--init-k", "15", "--max-iterations", "20", "--soft", "7"]),
-        ("completion", vec!["--form", "fixed-rank", "--refine", "icp", "-k", "10", "--kprime", "20", "--init-k", "10", "--refine-k", "20", "--max-iterations", "5"]),
+        (
+            "coupled",
+            vec!["--refine", "zoomout", "-k", "15", "--kprime", "40", "--zoomout-to", "40", "--zoomout-step", "5"],
+        ),
+        (
+            "completion",
+            vec![
+                "--refine",
+                "none",
+                "-k",
+                "15",
+                "--kprime",
+                "30",
+                "--init-k",
+                "15",
+                "--max-iterations",
+                "20",
+                "--soft",
+                "7",
+            ],
+        ),
+        (
+            "completion",
+            vec![
+                "--form",
+                "fixed-rank",
+                "--refine",
+                "icp",
+                "-k",
+                "10",
+                "--kprime",
+                "20",
+                "--init-k",
+                "10",
+                "--refine-k",
+                "20",
+                "--max-iterations",
+                "5",
+            ],
+        ),
     ] {
         let out = d.join(format!("out-{method}-{}", extra.len()));
-        let mut args: Vec<String> = ["match", xs, ys, "--data", segs.as_str(), "--method", method].iter().map(|s| s.to_string()).collect();
+        let mut args: Vec<String> =
+            ["match", xs, ys, "--data", segs.as_str(), "--method", method].iter().map(|s| s.to_string()).collect();
         args.extend(extra.iter().map(|s| s.to_string()));
         args.extend(common(&out));
         let refs: Vec<&str> = args.iter().map(String::as_str).collect();
@@ -292,7 +330,10 @@ fn match_every_method_and_its_outputs() {
     let out = d.join("bad");
     for (extra, needle) in [
         (vec!["--method", "completion", "-k", "40", "--kprime", "30"], "k"),
-        (vec!["--method", "completion", "--form", "low-rank", "-k", "10", "--kprime", "20", "--init-k", "10"], "low-rank form (9)"),
+        (
+            vec!["--method", "completion", "--form", "low-rank", "-k", "10", "--kprime", "20", "--init-k", "10"],
+            "low-rank form (9)",
+        ),
         (vec!["--method", "completion", "--optimizer", "rcg", "--mu4", "0.1", "-k", "10", "--kprime", "20"], "mu4"),
         (vec!["--soft", "99999", "-k", "10", "--kprime", "20"], "--soft"),
         (vec!["--view", "0", "-k", "10", "--kprime", "20"], "--view"),
@@ -536,8 +577,28 @@ fn match_and_eval_on_the_bundled_pair() {
     assert!(e.status.success(), "{}", text(&e.stderr));
     let v: serde_json::Value = serde_json::from_slice(&e.stdout).unwrap();
     let mean = v["summary"]["mean"].as_f64().unwrap();
-    assert!(mean < 0.08, "mean geodesic error {mean}"); // WKS + commutativity + ZoomOut on a same-subject pair
+    assert!(mean < 0.08, "mean geodesic error {mean}"); // WKS + ZoomOut on a same-subject pair
     assert_eq!(v["curve"].as_array().unwrap().len(), 51);
+    // Map files round trip: the same map written 1-based (MATLAB) evaluates identically.
+    let out1 = d.join("out1");
+    let mut args1 = vec!["match", xs, ys, "--data", "wks:50", "-k", "30", "--kprime", "80", "--zoomout-to", "80"];
+    args1.extend(["--one-based", "--no-render", "-o", out1.to_str().unwrap(), "--cache-dir", cache.to_str().unwrap()]);
+    assert!(run(&args1).status.success());
+    let map1 = std::fs::read_to_string(out1.join("map.txt")).unwrap();
+    assert!(map.lines().zip(map1.lines()).all(|(a, b)| a.parse::<usize>().unwrap() + 1 == b.parse::<usize>().unwrap()));
+    assert!(!out1.join("render.png").exists());
+    let npy = funcorr::io::npy::read_npy_matrix(&out1.join("map.npy")).unwrap();
+    assert!(map.lines().zip(&npy.data).all(|(a, b)| a.parse::<f64>().unwrap() == *b));
+    let mut eargs = vec!["eval", "--source", xs, "--target", ys, "--map", "PLACEHOLDER", "--one-based", "--json"];
+    let m1 = out1.join("map.txt");
+    eargs[6] = m1.to_str().unwrap();
+    let (gx, gy, gs) = (data("tr_reg_000.vts"), data("tr_reg_001.vts"), data("tr_reg_001.sym.vts"));
+    eargs.extend(["--gt-source", gx.to_str().unwrap(), "--gt-target", gy.to_str().unwrap()]);
+    eargs.extend(["--gt-target-sym", gs.to_str().unwrap()]);
+    let e1 = run(&eargs);
+    assert!(e1.status.success(), "{}", text(&e1.stderr));
+    let v1: serde_json::Value = serde_json::from_slice(&e1.stdout).unwrap();
+    assert_eq!(v1["summary"]["mean"].as_f64().unwrap(), mean);
     // Bad input: a map of the wrong length, an unknown data kind.
     let short = d.join("short.txt");
     std::fs::write(&short, "0\n1\n").unwrap();

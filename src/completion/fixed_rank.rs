@@ -285,7 +285,7 @@ pub fn minimize(
     while !converged && iterations < opts.max_iterations {
         let gg = g.inner(&g);
         let mut d0 = g.inner(&eta);
-        if !(d0 < 0.0) {
+        if d0.is_nan() || d0 >= 0.0 {
             eta = g.scaled(-1.0);
             d0 = -gg;
         }

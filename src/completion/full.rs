@@ -36,6 +36,9 @@ use crate::error::{Error, Result};
 use crate::laplacian::Laplacian;
 use crate::spectral::Basis;
 
+/// Products Z·P_R (m × p) and Zᵀ·P_L (n × p') of a gradient Z (m × n) with probe matrices.
+pub type GradientProducts = (Mat<f64>, Mat<f64>);
+
 /// The fixed data of the vertex-space forms (8)–(10), normalized by a [`Scaling`].
 #[derive(Clone, Debug)]
 pub struct FullProblem {
@@ -206,11 +209,11 @@ impl FullProblem {
         l: MatRef<f64>,
         r: MatRef<f64>,
         probes: Option<(MatRef<f64>, MatRef<f64>)>,
-    ) -> (Terms, Option<(Mat<f64>, Mat<f64>)>) {
+    ) -> (Terms, Option<GradientProducts>) {
         let (m, n) = (self.m(), self.n());
         assert!(l.nrows() == m && r.nrows() == n && l.ncols() == r.ncols(), "factor sizes");
         let mut terms = Terms::default();
-        let mut zr: Option<(Mat<f64>, Mat<f64>)> =
+        let mut zr: Option<GradientProducts> =
             probes.map(|(pl, pr)| (Mat::zeros(m, pr.ncols()), Mat::zeros(n, pl.ncols())));
         // Data: R_d = L (Rᵀ P) − G.
         let rtp = gemm_tn(r, self.p.as_ref()); // k × q

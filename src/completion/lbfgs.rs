@@ -112,6 +112,9 @@ fn line_search(
     }
 }
 
+/// An objective for [`minimize`]: the terms at x (f = `terms.total`) and ∇f(x).
+pub type Objective<'a> = dyn FnMut(&[f64]) -> (Terms, Vec<f64>) + 'a;
+
 /// What [`minimize`] found and did.
 #[derive(Clone, Debug)]
 pub struct Outcome {
@@ -144,11 +147,7 @@ pub struct Outcome {
 /// non-increasing. Stops on relative objective change ≤ `rel_tol`, on ‖∇f‖ ≤ `grad_tol`·‖∇f₀‖,
 /// at the iteration cap, or when a line search along steepest descent finds no decrease.
 /// Errors when f is not finite at `x0`.
-pub fn minimize(
-    x0: Vec<f64>,
-    opts: &OptimizeOptions,
-    eval: &mut dyn FnMut(&[f64]) -> (Terms, Vec<f64>),
-) -> Result<Outcome> {
+pub fn minimize(x0: Vec<f64>, opts: &OptimizeOptions, eval: &mut Objective) -> Result<Outcome> {
     let start = Instant::now();
     let mut evaluations = 0usize;
     let mut eval_at = |x: &[f64]| {

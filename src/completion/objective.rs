@@ -138,14 +138,13 @@ fn check_shapes(problem: &Problem, a: MatRef<f64>, b: MatRef<f64>) {
     );
 }
 
+/// The Gram matrices Φᵀ Φ, Ψᵀ Ψ (k' × k' each).
+type Grams<'p> = (MatRef<'p, f64>, MatRef<'p, f64>);
+
 /// The Gram matrices (Euclidean norm, [`Scaling::Paper`] only) and the factor of the low-norm
 /// term: 1 ([`Scaling::Paper`]) or 1/k ([`Scaling::Unit`], mass norms, so that an orthonormal
 /// rank-k map has low norm 1).
-fn low_norm_setup<'p>(
-    problem: &'p Problem,
-    params: &CompletionParams,
-    k: usize,
-) -> (Option<(MatRef<'p, f64>, MatRef<'p, f64>)>, f64) {
+fn low_norm_setup<'p>(problem: &'p Problem, params: &CompletionParams, k: usize) -> (Option<Grams<'p>>, f64) {
     match (problem.scaling, params.low_norm) {
         (Scaling::Unit, _) => (None, 1.0 / k as f64),
         (Scaling::Paper, LowNorm::Euclidean) => (Some((problem.gram_x.as_ref(), problem.gram_y.as_ref())), 1.0),
