@@ -338,8 +338,9 @@ struct MatchArgs {
     kprime: Option<usize>,
     /// Weight μ_c of the Laplacian-commutativity term of eq. (5) relative to its normalized data
     /// term (0: the paper's plain eq. (5)); also used for the completion method's start.
-    #[arg(long, default_value_t = 0.0)]
-    commutativity: f64,
+    /// Default: 1e-3 for rich data, 0 for scarce data (measured best, EXPERIMENTS.md).
+    #[arg(long)]
+    commutativity: Option<f64>,
     /// Normalization of the completion method's weights.
     #[arg(long, value_enum, default_value = "unit")]
     scaling: ScalingChoice,
@@ -1094,7 +1095,8 @@ fn match_options(args: &MatchArgs) -> Result<funcorr::matching::MatchOptions> {
         rel_tol: args.rel_tol,
         ..comp::OptimizeOptions::default()
     };
-    if !(args.commutativity.is_finite() && args.commutativity >= 0.0) {
+    let commutativity = args.commutativity.unwrap_or(if is_rich(&args.data) { 1e-3 } else { 0.0 });
+    if !(commutativity.is_finite() && commutativity >= 0.0) {
         return Err(Error::invalid("--commutativity", "must be finite and ≥ 0"));
     }
     Ok(MatchOptions {
@@ -1105,7 +1107,7 @@ fn match_options(args: &MatchArgs) -> Result<funcorr::matching::MatchOptions> {
             MethodChoice::Completion => Method::Completion,
         },
         k: args.k.unwrap_or(50),
-        commutativity: args.commutativity,
+        commutativity,
         completion,
         init_k: args.init_k,
         extraction: match args.extract {
