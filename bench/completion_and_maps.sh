@@ -25,4 +25,4 @@ echo "## subspace optimizer on tosca_hires cat0 -> cat10 (k' = 350, k = 250):"
 echo "## conversions, faust_r tr_reg_000 -> tr_reg_001:"
 ./target/release/examples/pointwise_timing $F/tr_reg_000.off $F/tr_reg_001.off $F/corres/tr_reg_000.vts $F/corres/tr_reg_001.vts $F/corres/tr_reg_001.sym.vts
 echo "## conversions, tosca_hires cat0 -> cat10 (same vertex ids):"
-./target/release/examples/pointwise_timing $C/cat0.off $C/cat10.off identity
+ZOOMOUT_STEPS=5 ./target/release/examples/pointwise_timing $C/cat0.off $C/cat10.off identity

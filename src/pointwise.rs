@@ -15,6 +15,9 @@ use crate::error::{Error, Result};
 /// Query rows per task of the nearest-neighbour search.
 const QUERY_BLOCK: usize = 256;
 
+/// Reference rows per product block of the nearest-neighbour search (256 × 2048 × 8 bytes = 4 MB).
+const REFERENCE_CHUNK: usize = 2048;
+
 /// Exact Euclidean nearest neighbours: for every row of `query` (n × d) the index of the nearest
 /// row of `reference` (m × d); ties go to the smallest index.
 ///
@@ -63,21 +66,27 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
         .map(|&r0| {
             let len = QUERY_BLOCK.min(n - r0);
             let q = query.subrows(r0, len);
-            let mut dots = Mat::<f64>::zeros(len, m);
-            matmul(dots.as_mut(), Accum::Replace, q, reference.transpose(), 1.0, Par::Seq);
-            (0..len)
-                .map(|i| {
-                    let mut best = (f64::INFINITY, 0usize);
-                    for j in 0..m {
+            // The reference rows in chunks, so that the block of products stays in cache
+            // (a 256 × m block is 57 MB for m = 28k).
+            let mut best = vec![(f64::INFINITY, 0usize); len];
+            let mut dots = Mat::<f64>::zeros(len, REFERENCE_CHUNK.min(m));
+            for c0 in (0..m).step_by(REFERENCE_CHUNK) {
+                let w = REFERENCE_CHUNK.min(m - c0);
+                matmul(dots.as_mut().subcols_mut(0, w), Accum::Replace, q, reference.subrows(c0, w).transpose(), 1.0, Par::Seq);
+                let d = dots.as_ref();
+                // Column by column (contiguous); j increases, so ties keep the smallest index.
+                for j in 0..w {
+                    let col = d.col(j);
+                    for (i, b) in best.iter_mut().enumerate() {
                         // ‖q‖² is the same for every j and left out.
-                        let dist = ref_norm[j] - 2.0 * dots[(i, j)];
-                        if dist < best.0 {
-                            best = (dist, j);
+                        let dist = ref_norm[c0 + j] - 2.0 * col[i];
+                        if dist < b.0 {
+                            *b = (dist, c0 + j);
                         }
                     }
-                    best.1
-                })
-                .collect()
+                }
+            }
+            best.into_iter().map(|b| b.1).collect()
         })
         .collect();
     Ok(blocks.into_iter().flatten().collect())

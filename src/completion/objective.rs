@@ -51,7 +51,7 @@ impl Default for CompletionParams {
             mu_comm: 0.0,
             k_comm: 0,
             low_norm: LowNorm::Euclidean,
-            block_rows: 512,
+            block_rows: 256,
         }
     }
 }
