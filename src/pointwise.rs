@@ -72,7 +72,14 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
             let mut dots = Mat::<f64>::zeros(len, REFERENCE_CHUNK.min(m));
             for c0 in (0..m).step_by(REFERENCE_CHUNK) {
                 let w = REFERENCE_CHUNK.min(m - c0);
-                matmul(dots.as_mut().subcols_mut(0, w), Accum::Replace, q, reference.subrows(c0, w).transpose(), 1.0, Par::Seq);
+                matmul(
+                    dots.as_mut().subcols_mut(0, w),
+                    Accum::Replace,
+                    q,
+                    reference.subrows(c0, w).transpose(),
+                    1.0,
+                    Par::Seq,
+                );
                 let d = dots.as_ref();
                 // Column by column (contiguous); j increases, so ties keep the smallest index.
                 for j in 0..w {

@@ -6,7 +6,7 @@ use std::collections::VecDeque;
 use std::time::Instant;
 
 use super::objective::Terms;
-use super::optimize::OptimizeOptions;
+use super::optimize::{CompletionReport, OptimizeOptions};
 use crate::error::{Error, Result};
 
 pub(crate) fn dot(x: &[f64], y: &[f64]) -> f64 {
@@ -115,39 +115,12 @@ fn line_search(
 /// An objective for [`minimize`]: the terms at x (f = `terms.total`) and ∇f(x).
 pub type Objective<'a> = dyn FnMut(&[f64]) -> (Terms, Vec<f64>) + 'a;
 
-/// What [`minimize`] found and did.
-#[derive(Clone, Debug)]
-pub struct Outcome {
-    /// The final point.
-    pub x: Vec<f64>,
-    /// Accepted steps.
-    pub iterations: usize,
-    /// Objective + gradient evaluations, line searches included.
-    pub evaluations: usize,
-    /// True when a tolerance was met (not the iteration cap or a failed line search).
-    pub converged: bool,
-    /// Why the minimization stopped.
-    pub stop_reason: String,
-    /// The terms at the start.
-    pub initial_terms: Terms,
-    /// The terms at the end.
-    pub terms: Terms,
-    /// The objective after each iteration, starting with the initial value.
-    pub history: Vec<f64>,
-    /// ‖∇f‖ at the start.
-    pub gradient_norm_initial: f64,
-    /// ‖∇f‖ at the end.
-    pub gradient_norm_final: f64,
-    /// Wall time.
-    pub seconds: f64,
-}
-
 /// Minimizes f from `x0` by L-BFGS; `eval(x)` returns the terms of f at x (f = `terms.total`)
 /// and ∇f(x). Every accepted step satisfies sufficient decrease, so the objective is
 /// non-increasing. Stops on relative objective change ≤ `rel_tol`, on ‖∇f‖ ≤ `grad_tol`·‖∇f₀‖,
 /// at the iteration cap, or when a line search along steepest descent finds no decrease.
 /// Errors when f is not finite at `x0`.
-pub fn minimize(x0: Vec<f64>, opts: &OptimizeOptions, eval: &mut Objective) -> Result<Outcome> {
+pub fn minimize(x0: Vec<f64>, opts: &OptimizeOptions, eval: &mut Objective) -> Result<(Vec<f64>, CompletionReport)> {
     let start = Instant::now();
     let mut evaluations = 0usize;
     let mut eval_at = |x: &[f64]| {
@@ -238,17 +211,19 @@ pub fn minimize(x0: Vec<f64>, opts: &OptimizeOptions, eval: &mut Objective) -> R
             stop_reason = format!("gradient norm ≤ {:e} of its initial value", opts.grad_tol);
         }
     }
-    Ok(Outcome {
-        x,
+    let seconds = start.elapsed().as_secs_f64();
+    let report = CompletionReport {
         iterations,
         evaluations,
         converged,
         stop_reason,
         initial_terms,
         terms,
-        history,
+        objective_history: history,
         gradient_norm_initial: g0_norm,
         gradient_norm_final: dot(&g, &g).sqrt(),
-        seconds: start.elapsed().as_secs_f64(),
-    })
+        seconds_total: seconds,
+        seconds_per_iteration: seconds / iterations.max(1) as f64,
+    };
+    Ok((x, report))
 }

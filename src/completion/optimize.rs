@@ -72,25 +72,6 @@ pub struct CompletionReport {
     pub seconds_per_iteration: f64,
 }
 
-impl CompletionReport {
-    /// The report of an L-BFGS run.
-    pub(crate) fn from_outcome(out: lbfgs::Outcome) -> Self {
-        CompletionReport {
-            iterations: out.iterations,
-            evaluations: out.evaluations,
-            converged: out.converged,
-            stop_reason: out.stop_reason,
-            initial_terms: out.initial_terms,
-            terms: out.terms,
-            objective_history: out.history,
-            gradient_norm_initial: out.gradient_norm_initial,
-            gradient_norm_final: out.gradient_norm_final,
-            seconds_total: out.seconds,
-            seconds_per_iteration: out.seconds / out.iterations.max(1) as f64,
-        }
-    }
-}
-
 /// x = (vec A, vec B), column-major.
 pub(crate) fn pack(a: MatRef<f64>, b: MatRef<f64>) -> Vec<f64> {
     let mut x = Vec::with_capacity(2 * a.nrows() * a.ncols());
@@ -144,9 +125,9 @@ pub fn optimize(
         let e = evaluate(problem, params, a.as_ref(), b.as_ref());
         (e.terms, pack(e.grad_a.as_ref(), e.grad_b.as_ref()))
     };
-    let out = lbfgs::minimize(pack(a0, b0), opts, &mut eval)?;
-    let (a, b) = unpack(&out.x, kp, k);
-    Ok((a, b, CompletionReport::from_outcome(out)))
+    let (x, report) = lbfgs::minimize(pack(a0, b0), opts, &mut eval)?;
+    let (a, b) = unpack(&x, kp, k);
+    Ok((a, b, report))
 }
 
 /// The paper's initialization from a functional map C (r × c, r ≤ k', c ≤ k), e.g. Ovsjanikov's:

@@ -290,10 +290,10 @@ pub fn low_norm(
         }
     }
     let mut eval = |x: &[f64]| low_norm_objective(problem, params, (&dy, &dx), x, k);
-    let out = lbfgs::minimize(x0, opts, &mut eval)?;
-    let u = Mat::from_fn(m, k, |i, j| out.x[j * m + i] / dy[i]);
-    let v = Mat::from_fn(n, k, |i, j| out.x[m * k + j * n + i] / dx[i]);
-    Ok((u, v, CompletionReport::from_outcome(out)))
+    let (x, report) = lbfgs::minimize(x0, opts, &mut eval)?;
+    let u = Mat::from_fn(m, k, |i, j| x[j * m + i] / dy[i]);
+    let v = Mat::from_fn(n, k, |i, j| x[m * k + j * n + i] / dx[i]);
+    Ok((u, v, report))
 }
 
 #[cfg(test)]

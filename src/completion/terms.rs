@@ -131,14 +131,13 @@ pub fn l1(
     weights: Option<Weights>,
     block_rows: usize,
 ) -> TermValue {
-    let u = gemm_nn(psi, a); // m × k
-    let v = gemm_nn(phi, b); // n × k
     let (kp, k) = (a.nrows(), a.ncols());
     if kp < 2 * k {
-        let r = soft_l1(u.as_ref(), v.as_ref(), xi, weights, block_rows, Products::Projected { psi, phi });
-        let z = r.projected.expect("requested");
-        chain_c(r.value, z.as_ref(), a, b)
+        let (value, z) = l1_c(a, b, phi, psi, xi, weights, block_rows);
+        chain_c(value, z.as_ref(), a, b)
     } else {
+        let u = gemm_nn(psi, a); // m × k
+        let v = gemm_nn(phi, b); // n × k
         let r = soft_l1(
             u.as_ref(),
             v.as_ref(),
