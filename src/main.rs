@@ -359,9 +359,10 @@ struct MatchArgs {
     /// ξ of the smoothed absolute value √(t² + ξ).
     #[arg(long)]
     xi: Option<f64>,
-    /// Weight of the optional Laplacian-commutativity term added to the completion objective
-    /// (0: the paper's pure form).
-    #[arg(long, default_value_t = 0.0)]
+    /// Weight of the Laplacian-commutativity term (isometry prior) added to the completion
+    /// objective; on by default because it won on the faust_r dev pairs (EXPERIMENTS.md);
+    /// 0 gives the paper's pure form (11).
+    #[arg(long, default_value_t = 1e-2)]
     completion_commutativity: f64,
     /// Size of the leading block of C the completion's commutativity term acts on (0: all k').
     #[arg(long, default_value_t = 50)]
