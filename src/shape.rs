@@ -387,7 +387,8 @@ impl TriMesh {
     }
 }
 
-fn bounding_box(v: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
+/// The axis-aligned bounding box (min, max) of a list of points; (+∞, −∞) when empty.
+pub(crate) fn bounding_box(v: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     for p in v {

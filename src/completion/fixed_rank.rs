@@ -24,7 +24,7 @@ use std::time::Instant;
 
 use faer::{Mat, MatRef};
 
-use super::full::{metric, unscale_rows, FullProblem};
+use super::full::{metric, scale_rows, unscale_rows, FullProblem};
 use super::objective::{gradient_c, value, CompletionParams, Terms};
 use super::optimize::{CompletionReport, OptimizeOptions};
 use super::{gemm_nn, gemm_tn, mul, Problem};
@@ -92,8 +92,7 @@ impl<'a> FullRank<'a> {
 
     /// Factors of T_S from factors of T.
     pub fn scale(&self, l: MatRef<f64>, r: MatRef<f64>) -> (Mat<f64>, Mat<f64>) {
-        let s = |d: &[f64], x: MatRef<f64>| Mat::from_fn(x.nrows(), x.ncols(), |i, j| d[i] * x[(i, j)]);
-        (s(&self.dy, l), s(&self.dx, r))
+        (scale_rows(&self.dy, l), scale_rows(&self.dx, r))
     }
 }
 
@@ -333,12 +332,9 @@ pub fn minimize(
         f = terms.total;
         iterations += 1;
         history.push(f);
-        if f_old - f <= opts.rel_tol * f_old.abs() {
+        if let Some(reason) = opts.converged(f_old, f, g.inner(&g).sqrt(), g0_norm) {
             converged = true;
-            stop_reason = format!("relative objective change ≤ {:e}", opts.rel_tol);
-        } else if g.inner(&g).sqrt() <= opts.grad_tol * g0_norm {
-            converged = true;
-            stop_reason = format!("gradient norm ≤ {:e} of its initial value", opts.grad_tol);
+            stop_reason = reason;
         }
     }
     let seconds = start.elapsed().as_secs_f64();

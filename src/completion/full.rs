@@ -76,7 +76,7 @@ pub(crate) fn sparse_mul(w: &SparseColMat<usize, f64>, x: MatRef<f64>) -> Mat<f6
 }
 
 /// diag(d) x.
-fn scale_rows(d: &[f64], x: MatRef<f64>) -> Mat<f64> {
+pub(crate) fn scale_rows(d: &[f64], x: MatRef<f64>) -> Mat<f64> {
     Mat::from_fn(x.nrows(), x.ncols(), |i, j| d[i] * x[(i, j)])
 }
 

@@ -203,12 +203,9 @@ pub fn minimize(x0: Vec<f64>, opts: &OptimizeOptions, eval: &mut Objective) -> R
         terms = pt.terms;
         iterations += 1;
         history.push(f);
-        if f_old - f <= opts.rel_tol * f_old.abs() {
+        if let Some(reason) = opts.converged(f_old, f, dot(&g, &g).sqrt(), g0_norm) {
             converged = true;
-            stop_reason = format!("relative objective change ≤ {:e}", opts.rel_tol);
-        } else if dot(&g, &g).sqrt() <= opts.grad_tol * g0_norm {
-            converged = true;
-            stop_reason = format!("gradient norm ≤ {:e} of its initial value", opts.grad_tol);
+            stop_reason = reason;
         }
     }
     let seconds = start.elapsed().as_secs_f64();

@@ -72,6 +72,20 @@ pub struct CompletionReport {
     pub seconds_per_iteration: f64,
 }
 
+impl OptimizeOptions {
+    /// The stopping rule shared by the optimizers, after an accepted step from objective
+    /// `f_old` to `f` with gradient norm `g_norm` (`g0_norm` at the start): why to stop, if so.
+    pub(crate) fn converged(&self, f_old: f64, f: f64, g_norm: f64, g0_norm: f64) -> Option<String> {
+        if f_old - f <= self.rel_tol * f_old.abs() {
+            Some(format!("relative objective change ≤ {:e}", self.rel_tol))
+        } else if g_norm <= self.grad_tol * g0_norm {
+            Some(format!("gradient norm ≤ {:e} of its initial value", self.grad_tol))
+        } else {
+            None
+        }
+    }
+}
+
 /// x = (vec A, vec B), column-major.
 pub(crate) fn pack(a: MatRef<f64>, b: MatRef<f64>) -> Vec<f64> {
     let mut x = Vec::with_capacity(2 * a.nrows() * a.ncols());

@@ -10,14 +10,7 @@ pub use render::{render, render_pair, write_png, ColoredShape, Image, View};
 /// A smooth colouring by position: each coordinate, normalized to [0, 1] over the bounding box,
 /// becomes one RGB channel (with a gamma of 0.8 to lift dark corners). One colour per vertex.
 pub fn position_colors(vertices: &[[f64; 3]]) -> Vec<[u8; 3]> {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in vertices {
-        for d in 0..3 {
-            lo[d] = lo[d].min(p[d]);
-            hi[d] = hi[d].max(p[d]);
-        }
-    }
+    let (lo, hi) = crate::shape::bounding_box(vertices);
     vertices
         .iter()
         .map(|p| {

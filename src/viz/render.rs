@@ -282,14 +282,7 @@ impl Panel {
         }
 
         // Centre the bounding box (halves first, so that huge coordinates do not overflow).
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for p in vertices {
-            for d in 0..3 {
-                lo[d] = lo[d].min(p[d]);
-                hi[d] = hi[d].max(p[d]);
-            }
-        }
+        let (lo, hi) = crate::shape::bounding_box(vertices);
         let centre: [f64; 3] = std::array::from_fn(|d| lo[d] / 2.0 + hi[d] / 2.0);
         let centred: Vec<[f64; 3]> = vertices.iter().map(|p| std::array::from_fn(|d| p[d] - centre[d])).collect();
         // Bounding-sphere radius, scaled by the largest |coordinate| so that squares do not overflow.
