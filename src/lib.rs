@@ -19,10 +19,12 @@
 //! assert!((basis.eigenvalues[1] - 2.0).abs() < 0.05); // l(l+1) for l = 1
 //! ```
 
+pub mod benchmark;
 pub mod completion;
 pub mod descriptors;
 pub mod error;
 pub mod eval;
+pub mod experiments;
 pub mod fmap;
 pub mod geodesic;
 pub mod io;

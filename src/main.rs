@@ -49,6 +49,16 @@ enum Command {
     /// Evaluate a point-to-point map X → Y against ground-truth template correspondences
     /// (.vts files) with the Princeton protocol: geodesic errors on Y / √area(Y).
     Eval(EvalArgs),
+    /// Run methods on the pairs of a data set (the Princeton protocol: hard error (12), symmetric
+    /// flips allowed) and write per-pair CSV/JSON, maps, a summary table and a plot of the
+    /// cumulative error curves (one line per method).
+    Bench(bench_cli::BenchArgs),
+    /// Reproduce the paper's experiments: `rank` (Figure 5), `l1` (Figure 6), `benchmark`
+    /// (Figure 7); each writes its table, JSON and plot.
+    Reproduce {
+        #[command(subcommand)]
+        what: bench_cli::ReproduceWhat,
+    },
     /// Run the default pipeline on a pair of bundled FAUST shapes and write results to
     /// ./funcorr-demo/.
     Demo {
@@ -310,21 +320,10 @@ enum OptimizerChoice {
     Rcg,
 }
 
-#[derive(clap::Args)]
-struct MatchArgs {
-    /// Source shape X.
-    x: PathBuf,
-    /// Target shape Y.
-    y: PathBuf,
-    /// Corresponding data: `wks:N`, `hks:N`, `wks+hks:N`, `segments:X.seg,Y.seg` (labels that
-    /// agree between the files), `persistence`, `mser`, `landmarks:pairs.txt` (0-based `i j`
-    /// per line), `rich` (100 WKS + 100 heat kernel maps localized on the persistence segments,
-    /// the paper's rich data) or `rich:X.seg,Y.seg` (on given segments), or `matrix:F.npy,G.npy`.
-    #[arg(long, default_value = "wks:100")]
-    data: String,
-    /// Functional-map method.
-    #[arg(long, value_enum, default_value = "fmap")]
-    method: MethodChoice,
+/// Settings of the matching pipeline shared by `match` and `bench`: the method's parameters,
+/// the point-map extraction and the refinement.
+#[derive(clap::Args, Clone)]
+struct PipelineArgs {
     /// Form of the completion method.
     #[arg(long, value_enum, default_value = "subspace")]
     form: FormChoice,
@@ -401,6 +400,25 @@ struct MatchArgs {
     /// Size increment per ZoomOut iteration (1 as in Melzi et al.; larger is faster).
     #[arg(long, default_value_t = 1)]
     zoomout_step: usize,
+}
+
+#[derive(clap::Args)]
+struct MatchArgs {
+    /// Source shape X.
+    x: PathBuf,
+    /// Target shape Y.
+    y: PathBuf,
+    /// Corresponding data: `wks:N`, `hks:N`, `wks+hks:N`, `segments:X.seg,Y.seg` (labels that
+    /// agree between the files), `persistence`, `mser`, `landmarks:pairs.txt` (0-based `i j`
+    /// per line), `rich` (100 WKS + 100 heat kernel maps localized on the persistence segments,
+    /// the paper's rich data) or `rich:X.seg,Y.seg` (on given segments), or `matrix:F.npy,G.npy`.
+    #[arg(long, default_value = "wks:100")]
+    data: String,
+    /// Functional-map method.
+    #[arg(long, value_enum, default_value = "fmap")]
+    method: MethodChoice,
+    #[command(flatten)]
+    pipe: PipelineArgs,
     /// Write map.txt with 1-based vertex ids (MATLAB).
     #[arg(long)]
     one_based: bool,
@@ -606,6 +624,8 @@ macro_rules! outln {
     }};
 }
 
+mod bench_cli;
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -616,6 +636,8 @@ fn main() -> ExitCode {
         Command::Match(args) => match_shapes(&args),
         Command::Eval(args) => eval(&args),
         Command::Demo { out, k } => demo(&out, k),
+        Command::Bench(args) => bench_cli::bench(&args),
+        Command::Reproduce { what } => bench_cli::reproduce(&what),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -961,20 +983,7 @@ fn pair_data(
             let la = funcorr::io::indices::read_labels_file(&a, x.n_vertices())?;
             let lb = funcorr::io::indices::read_labels_file(&b, y.n_vertices())?;
             // Labels agree between the files: keep the labels present on both, in order.
-            let (fa, fb) = (desc::segments(&la)?, desc::segments(&lb)?);
-            let common: Vec<&String> = fa.names.iter().filter(|n| fb.names.contains(n)).collect();
-            if common.is_empty() {
-                return Err(bad("the two label files share no label".into()));
-            }
-            let pick = |d: &desc::Descriptors| {
-                let cols: Vec<usize> =
-                    common.iter().map(|c| d.names.iter().position(|n| n == *c).expect("common")).collect();
-                desc::Descriptors::new(
-                    faer::Mat::from_fn(d.n(), cols.len(), |i, j| d.values[(i, cols[j])]),
-                    cols.iter().map(|&c| d.names[c].clone()).collect(),
-                )
-            };
-            Ok((pick(&fa)?, pick(&fb)?))
+            desc::matched_segments(&la, &lb).map_err(|e| bad(e.to_string()))
         }
         "persistence" => {
             let a = persistence_labels(x, lx, bx, seg)?;
@@ -1042,91 +1051,92 @@ fn is_rich(spec: &str) -> bool {
     matches!(kind, "wks" | "hks" | "wks+hks" | "rich" | "matrix")
 }
 
-/// The library options of `funcorr match` (defaults per method and data, see `--help`).
-fn match_options(args: &MatchArgs) -> Result<funcorr::matching::MatchOptions> {
+/// The library options of a pipeline (defaults per method and data, see `--help`).
+fn pipeline_options(p: &PipelineArgs, method: MethodChoice, rich: bool) -> Result<funcorr::matching::MatchOptions> {
     use funcorr::completion::{self as comp, CompletionOptions, Form, Init, Optimizer, Scaling};
     use funcorr::matching::{Extraction, MatchOptions, Method};
-    let scaling = match args.scaling {
+    let scaling = match p.scaling {
         ScalingChoice::Unit => Scaling::Unit,
         ScalingChoice::Paper => Scaling::Paper,
     };
-    let mut completion = CompletionOptions::paper(is_rich(&args.data), scaling);
-    if let Some(k) = args.k {
+    let mut completion = CompletionOptions::paper(rich, scaling);
+    if let Some(k) = p.k {
         completion.k = k;
     }
-    if let Some(kp) = args.kprime {
+    if let Some(kp) = p.kprime {
         completion.k_prime = kp;
     }
-    completion.form = match args.form {
+    completion.form = match p.form {
         FormChoice::Subspace => Form::Subspace,
         FormChoice::FixedRank => Form::FixedRank,
         FormChoice::LowRank => Form::LowRank,
         FormChoice::LowNorm => Form::LowNorm,
     };
-    completion.init = match args.init {
+    completion.init = match p.init {
         InitChoice::Pad => Init::Pad,
         InitChoice::Svd => Init::Svd,
     };
-    completion.optimizer = args.optimizer.map(|o| match o {
+    completion.optimizer = p.optimizer.map(|o| match o {
         OptimizerChoice::Lbfgs => Optimizer::Lbfgs,
         OptimizerChoice::Rcg => Optimizer::Rcg,
     });
-    let p = &mut completion.params;
-    for (slot, v) in [
-        (&mut p.mu1, args.mu1),
-        (&mut p.mu2, args.mu2),
-        (&mut p.mu3, args.mu3),
-        (&mut p.mu4, args.mu4),
-        (&mut p.xi, args.xi),
-    ] {
+    let w = &mut completion.params;
+    for (slot, v) in
+        [(&mut w.mu1, p.mu1), (&mut w.mu2, p.mu2), (&mut w.mu3, p.mu3), (&mut w.mu4, p.mu4), (&mut w.xi, p.xi)]
+    {
         if let Some(v) = v {
             *slot = v;
         }
     }
     if completion.optimizer == Some(Optimizer::Rcg) || completion.form == Form::FixedRank {
-        if args.mu4.is_some_and(|m| m != 0.0) {
+        if p.mu4.is_some_and(|m| m != 0.0) {
             return Err(Error::invalid("--mu4", "the fixed-rank forms have no low-norm term"));
         }
-        p.mu4 = 0.0;
+        w.mu4 = 0.0;
     }
-    p.mu_comm = args.completion_commutativity;
-    p.k_comm = args.completion_commutativity_k;
+    w.mu_comm = p.completion_commutativity;
+    w.k_comm = p.completion_commutativity_k;
     completion.optimize = comp::OptimizeOptions {
-        max_iterations: args.max_iterations,
-        rel_tol: args.rel_tol,
+        max_iterations: p.max_iterations,
+        rel_tol: p.rel_tol,
         ..comp::OptimizeOptions::default()
     };
-    let commutativity = args.commutativity.unwrap_or(if is_rich(&args.data) { 1e-3 } else { 0.0 });
+    let commutativity = p.commutativity.unwrap_or(if rich { 1e-3 } else { 0.0 });
     if !(commutativity.is_finite() && commutativity >= 0.0) {
         return Err(Error::invalid("--commutativity", "must be finite and ≥ 0"));
     }
     Ok(MatchOptions {
-        method: match args.method {
+        method: match method {
             MethodChoice::Fmap => Method::Fmap,
             MethodChoice::Pokrass => Method::Pokrass,
             MethodChoice::Coupled => Method::Coupled,
             MethodChoice::Completion => Method::Completion,
         },
-        k: args.k.unwrap_or(50),
+        k: p.k.unwrap_or(50),
         commutativity,
         completion,
-        init_k: args.init_k,
-        extraction: match args.extract {
+        init_k: p.init_k,
+        extraction: match p.extract {
             ExtractChoice::Nn => Extraction::Nn,
             ExtractChoice::Argmax => Extraction::Argmax,
             ExtractChoice::Fmap => Extraction::Fmap,
         },
-        refine: match args.refine.unwrap_or(if is_rich(&args.data) { Refine::Zoomout } else { Refine::Icp }) {
+        refine: match p.refine.unwrap_or(if rich { Refine::Zoomout } else { Refine::Icp }) {
             Refine::None => funcorr::matching::Refine::None,
             Refine::Icp => funcorr::matching::Refine::Icp,
             Refine::Zoomout => funcorr::matching::Refine::Zoomout,
         },
-        refine_k: args.refine_k,
-        icp: funcorr::pointwise::IcpOptions { max_iterations: args.icp_iterations },
-        zoomout_to: args.zoomout_to,
-        zoomout_step: args.zoomout_step,
+        refine_k: p.refine_k,
+        icp: funcorr::pointwise::IcpOptions { max_iterations: p.icp_iterations },
+        zoomout_to: p.zoomout_to,
+        zoomout_step: p.zoomout_step,
         ..MatchOptions::default()
     })
+}
+
+/// The library options of `funcorr match` (defaults per method and data, see `--help`).
+fn match_options(args: &MatchArgs) -> Result<funcorr::matching::MatchOptions> {
+    pipeline_options(&args.pipe, args.method, is_rich(&args.data))
 }
 
 /// Writes a k × k (or r × c) matrix as .npy.
@@ -1178,7 +1188,7 @@ fn match_shapes(args: &MatchArgs) -> Result<()> {
     let basis_k = opts.basis_size().max(if opts.method == funcorr::matching::Method::Completion {
         0
     } else {
-        args.kprime.unwrap_or(200)
+        args.pipe.kprime.unwrap_or(200)
     });
     let x = st.run("read", || Shape::load(&args.x))?;
     let y = st.run("read", || Shape::load(&args.y))?;
@@ -1350,6 +1360,11 @@ fn default_match_args() -> Result<MatchArgs> {
         Command::Match(args) => Ok(args),
         _ => Err(Error::invalid("demo", "could not build the match defaults")),
     }
+}
+
+/// The pipeline defaults of `funcorr match` (shared by `bench` and `reproduce`).
+fn default_pipeline_args() -> Result<PipelineArgs> {
+    Ok(default_match_args()?.pipe)
 }
 
 /// Demo step: the default `funcorr match` pipeline evaluated against the bundled ground truth;

@@ -196,7 +196,8 @@ pub fn run(
         }
         Method::Completion => {
             let kp = opts.completion.k_prime;
-            let init_k = opts.init_k.min(kp);
+            // The start C0 (init_k × init_k) must fit in the k' × k coefficients.
+            let init_k = opts.init_k.min(kp).min(opts.completion.k);
             let c0 = timed(&mut stages, "initial map", || fmap::ovsjanikov(bx, by, f, g, init_k, &ovs))?;
             let s = timed(&mut stages, "completion", || {
                 completion::solve(bx, by, laplacians, f, g, c0.as_ref(), &opts.completion)

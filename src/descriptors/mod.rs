@@ -127,6 +127,25 @@ pub fn segments(labels: &[u32]) -> Result<Descriptors> {
     Ok(Descriptors { values, names: distinct.iter().map(|l| format!("segment:{l}")).collect() })
 }
 
+/// Corresponding segment indicators of two shapes whose label files agree (segment L on X is
+/// segment L on Y, as in the benchmark segmentations): F (n × s) and G (m × s) for the s labels
+/// present on both, in ascending label order. Errors when the shapes share no label.
+pub fn matched_segments(labels_x: &[u32], labels_y: &[u32]) -> Result<(Descriptors, Descriptors)> {
+    let (fa, fb) = (segments(labels_x)?, segments(labels_y)?);
+    let common: Vec<&String> = fa.names.iter().filter(|n| fb.names.contains(n)).collect();
+    if common.is_empty() {
+        return Err(Error::invalid("segments", "the two label sets share no label"));
+    }
+    let pick = |d: &Descriptors| {
+        let cols: Vec<usize> = common.iter().map(|c| d.names.iter().position(|n| n == *c).expect("common")).collect();
+        Descriptors::new(
+            Mat::from_fn(d.n(), cols.len(), |i, j| d.values[(i, cols[j])]),
+            cols.iter().map(|&c| d.names[c].clone()).collect(),
+        )
+    };
+    Ok((pick(&fa)?, pick(&fb)?))
+}
+
 /// Localized descriptors (paper §4.1, rich data): every column of `d` multiplied by every segment
 /// indicator of `segments`, segment-major: column s·q + j is `d_j · 1_{segment s}`, named
 /// `d_j@segment`. n × (q · S).

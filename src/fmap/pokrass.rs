@@ -87,11 +87,15 @@ pub fn pokrass(
 /// Steps 1–2 of the alternation from the permutation `perm`.
 fn alternate(p: &Problem, mut perm: Vec<usize>, opts: &PokrassOptions) -> (Mat<f64>, Vec<usize>) {
     // Diagonal least squares: the minimizer among the matrices the prior M favours (a full
-    // least-squares start is unbounded when Â is ill-conditioned and Π wrong).
+    // least-squares start is unbounded when Â is ill-conditioned and Π wrong). A small ridge,
+    // 1e-3 of the mean row energy of ÂΠ, keeps rows the data barely excite (k > q) near 0
+    // instead of a ratio of two tiny numbers, which the data term would never correct.
     let ap = permuted(&p.a, &perm);
     let k = p.k();
+    let energy: Vec<f64> = (0..k).map(|i| ap.row(i).iter().map(|v| v * v).sum()).collect();
+    let ridge = 1e-3 * energy.iter().sum::<f64>() / k.max(1) as f64;
     let mut c = Mat::from_fn(k, k, |i, j| {
-        let den: f64 = ap.row(i).iter().map(|v| v * v).sum();
+        let den = energy[i] + ridge;
         if i != j || den == 0.0 {
             return 0.0;
         }

@@ -3,6 +3,7 @@
 //! functions (e.g. a transferred delta, Figures 5–6) through a colour map; [`mod@render`] draws
 //! coloured meshes and point clouds to an image and writes it as PNG, without a GPU.
 
+pub mod plot;
 pub mod render;
 
 pub use render::{render, render_pair, write_png, ColoredShape, Image, View};

@@ -1,0 +1,596 @@
+//! `funcorr bench` (a data set through the Princeton protocol) and `funcorr reproduce` (the
+//! paper's Figures 5, 6 and 7): argument parsing, progress and printing over
+//! [`funcorr::benchmark`] and [`funcorr::experiments`].
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressStyle};
+
+use funcorr::benchmark::{self, BenchMethod, BenchOptions, DataSpec, Dataset, Report};
+use funcorr::completion::{CompletionOptions, Form, Scaling};
+use funcorr::experiments::Sterile;
+use funcorr::viz::plot::{LinePlot, Series};
+use funcorr::{Error, Result};
+
+use super::{pipeline_options, CacheArgs, GeodesicsChoice, MethodChoice, PipelineArgs, ScalingChoice};
+
+/// Arguments of `funcorr bench`.
+#[derive(clap::Args)]
+pub(crate) struct BenchArgs {
+    /// Data set directory: shapes NAME.off (.obj, .ply), corres/NAME.vts and NAME.sym.vts,
+    /// pairs.txt, segmentation/A_B.S.seg.sym (the layout of ../shared/data).
+    #[arg(long)]
+    dataset: PathBuf,
+    /// Pairs to run (two shape names per line; default DATASET/pairs.txt).
+    #[arg(long)]
+    pairs: Option<PathBuf>,
+    /// Run only the first N pairs.
+    #[arg(long)]
+    limit: Option<usize>,
+    /// Methods, comma-separated.
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "fmap,pokrass,coupled,completion")]
+    methods: Vec<MethodChoice>,
+    /// Data functions: `segments` (the data set's segmentation, .seg.sym; `segments:nonsym` for
+    /// .seg.nonsym), `wks:N`, `rich` (100 WKS + 100 heat kernel maps localized on the segments),
+    /// or `landmarks:N` (delta functions at N ground-truth landmarks).
+    #[arg(long, default_value = "segments")]
+    data: String,
+    /// Do not allow symmetric flips (default: allowed, with corres/NAME.sym.vts, as the paper).
+    #[arg(long)]
+    no_symmetric: bool,
+    /// Geodesic distances on Y for the errors.
+    #[arg(long, value_enum, default_value = "exact")]
+    geodesics: GeodesicsChoice,
+    /// Pairs run at once (default: one per core).
+    #[arg(long)]
+    jobs: Option<usize>,
+    /// Title of the plot and the table.
+    #[arg(long)]
+    title: Option<String>,
+    #[command(flatten)]
+    pipe: PipelineArgs,
+    #[command(flatten)]
+    cache: CacheArgs,
+    /// Output directory: pairs.csv, pairs.json, maps/, summary.csv, summary.md, summary.json,
+    /// curves.png.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// No progress bar.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+fn method_name(m: MethodChoice) -> &'static str {
+    match m {
+        MethodChoice::Fmap => "fmap",
+        MethodChoice::Pokrass => "pokrass",
+        MethodChoice::Coupled => "coupled",
+        MethodChoice::Completion => "completion",
+    }
+}
+
+/// A progress bar for [`benchmark::run`] (hidden when quiet).
+fn stage_bar(quiet: bool) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::new(0);
+    pb.set_style(
+        ProgressStyle::with_template("{spinner} {msg} {pos}/{len} [{bar:30}] {elapsed} (eta {eta})")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    pb
+}
+
+/// Runs `methods` with `data` on the pairs and returns the report (with a progress bar).
+#[allow(clippy::too_many_arguments)]
+fn run_benchmark(
+    ds: &Dataset,
+    pairs: &[(String, String)],
+    methods: &[MethodChoice],
+    data: DataSpec,
+    pipe: &PipelineArgs,
+    symmetric: bool,
+    geodesics: GeodesicsChoice,
+    cache: &CacheArgs,
+    quiet: bool,
+) -> Result<Report> {
+    let methods = methods
+        .iter()
+        .map(|&m| {
+            Ok(BenchMethod { name: method_name(m).to_string(), options: pipeline_options(pipe, m, data.is_rich())? })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let opts = BenchOptions { data, methods, symmetric, geodesics: geodesics.into(), cache: cache.cache() };
+    let pb = stage_bar(quiet);
+    let progress = |stage: &str, done: usize, total: usize| {
+        if done == 0 {
+            pb.set_message(if stage == "shapes" { "shapes (eigenbases)" } else { "pairs" });
+            pb.set_length(total as u64);
+            pb.reset();
+        }
+        pb.set_position(done as u64);
+    };
+    let report = benchmark::run(ds, pairs, &opts, Some(&progress));
+    pb.finish_and_clear();
+    report
+}
+
+fn thread_pool(jobs: Option<usize>) -> Result<rayon::ThreadPool> {
+    let mut b = rayon::ThreadPoolBuilder::new();
+    if let Some(j) = jobs {
+        if j == 0 || j > 1024 {
+            return Err(Error::invalid("--jobs", format!("{j}: expected 1..=1024")));
+        }
+        b = b.num_threads(j);
+    }
+    b.build().map_err(|e| Error::invalid("--jobs", e.to_string()))
+}
+
+fn select_pairs(ds: &Dataset, file: Option<&Path>, limit: Option<usize>) -> Result<Vec<(String, String)>> {
+    let mut pairs = ds.pairs(file)?;
+    if let Some(l) = limit {
+        if l == 0 {
+            return Err(Error::invalid("--limit", "must be at least 1"));
+        }
+        pairs.truncate(l);
+    }
+    Ok(pairs)
+}
+
+fn print_written(paths: &[PathBuf]) -> Result<()> {
+    for p in paths {
+        outln!("wrote {}", p.display());
+    }
+    Ok(())
+}
+
+pub(crate) fn bench(args: &BenchArgs) -> Result<()> {
+    let data: DataSpec = args.data.parse()?;
+    let ds = Dataset::open(&args.dataset)?;
+    let pairs = select_pairs(&ds, args.pairs.as_deref(), args.limit)?;
+    let pool = thread_pool(args.jobs)?;
+    let report = pool.install(|| {
+        run_benchmark(
+            &ds,
+            &pairs,
+            &args.methods,
+            data,
+            &args.pipe,
+            !args.no_symmetric,
+            args.geodesics,
+            &args.cache,
+            args.quiet,
+        )
+    })?;
+    let title = args.title.clone().unwrap_or_else(|| {
+        format!(
+            "{}: {} pairs, data {data}{}",
+            ds.dir().file_name().map(|s| s.to_string_lossy().to_string()).unwrap_or_default(),
+            pairs.len(),
+            if report.symmetric { ", symmetric" } else { "" }
+        )
+    });
+    let written = report.write(&args.output, &title)?;
+    outln!("{title} (hard error, {} geodesics; {:.1} s)\n", report.geodesics.name(), report.wall_seconds);
+    outln!("{}", report.table());
+    for r in report.runs.iter().filter(|r| r.outcome.is_err()) {
+        eprintln!("funcorr: {} → {} ({}): {}", r.source, r.target, r.method, r.outcome.as_ref().unwrap_err());
+    }
+    print_written(&written)
+}
+
+/// What `funcorr reproduce` runs.
+#[derive(clap::Subcommand)]
+pub(crate) enum ReproduceWhat {
+    /// Figure 5: soft error (13) vs the rank k for the completion method (11) in the fixed-rank
+    /// regime (μ4 = 0), Ovsjanikov et al. (5) and Pokrass et al. (6), with q ideal corresponding
+    /// functions on a near-isometric pair. Writes rank.csv, rank.json and rank.png.
+    Rank(RankArgs),
+    /// Figure 6: soft error (13) vs the L1 weight μ3 at fixed k. Writes l1.csv, l1.json, l1.png.
+    L1(L1Args),
+    /// Figure 7: the Princeton protocol (hard error, symmetric flips) on data set pairs in the
+    /// scarce (segments) and rich (localized WKS + HKM) settings, ICP refinement as in the
+    /// paper. Writes scarce/ and rich/ (as `funcorr bench`), benchmark.md and benchmark.png
+    /// (solid: rich, dashed: scarce).
+    Benchmark(ReproBenchArgs),
+}
+
+/// The sterile setting of Figures 5 and 6.
+#[derive(clap::Args)]
+pub(crate) struct SterileArgs {
+    /// Data set directory.
+    #[arg(long, default_value = "../shared/data/faust_r")]
+    dataset: PathBuf,
+    /// The near-isometric pair X,Y (same subject, different poses).
+    #[arg(long, default_value = "tr_reg_000,tr_reg_001")]
+    pair: String,
+    /// Number q of ideal corresponding functions.
+    #[arg(long, default_value_t = 50)]
+    q: usize,
+    /// Subspace size k' of the completion method (and the eigenpairs per shape).
+    #[arg(long, default_value_t = 350)]
+    kprime: usize,
+    /// Template points at which the soft error is evaluated (evenly spaced).
+    #[arg(long, default_value_t = 250)]
+    samples: usize,
+    /// Weight normalization of the completion method: `paper` takes the paper's weights
+    /// literally, `unit` makes them scale-free (see `funcorr match --help`).
+    #[arg(long, value_enum, default_value = "paper")]
+    scaling: ScalingChoice,
+    /// μ1 (default: the paper's value for the figure).
+    #[arg(long)]
+    mu1: Option<f64>,
+    /// μ2 (default: the paper's value for the figure).
+    #[arg(long)]
+    mu2: Option<f64>,
+    /// ξ of the smoothed absolute value.
+    #[arg(long, default_value_t = 1e-3)]
+    xi: f64,
+    /// Isometry prior added to (11) (0: the paper's pure form).
+    #[arg(long, default_value_t = 0.0)]
+    completion_commutativity: f64,
+    /// Iteration cap of the completion optimizer (L-BFGS).
+    #[arg(long, default_value_t = 300)]
+    max_iterations: usize,
+    /// Size of the eq. (5) map starting the completion method (capped at q).
+    #[arg(long, default_value_t = 50)]
+    init_k: usize,
+    /// Weight μ of the off-diagonal L1 prior of Pokrass et al.
+    #[arg(long, default_value_t = 1e-3)]
+    pokrass_mu: f64,
+    /// Geodesic distances on Y.
+    #[arg(long, value_enum, default_value = "exact")]
+    geodesics: GeodesicsChoice,
+    #[command(flatten)]
+    cache: CacheArgs,
+    /// Output directory.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// No progress output.
+    #[arg(long)]
+    quiet: bool,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct RankArgs {
+    #[command(flatten)]
+    common: SterileArgs,
+    /// The ranks k.
+    #[arg(long, value_delimiter = ',', default_value = "10,20,30,40,50,60,80,100,150")]
+    ks: Vec<usize>,
+    /// L1 weight μ3 (the paper's 1e-1).
+    #[arg(long, default_value_t = 1e-1)]
+    mu3: f64,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct L1Args {
+    #[command(flatten)]
+    common: SterileArgs,
+    /// The L1 weights μ3 (0 is drawn at the left end of the log axis).
+    #[arg(long, value_delimiter = ',', default_value = "0,1e-4,1e-3,1e-2,1e-1,1")]
+    mu3s: Vec<f64>,
+    /// The rank k (the paper's 45).
+    #[arg(short, default_value_t = 45)]
+    k: usize,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct ReproBenchArgs {
+    /// Data set directory.
+    #[arg(long, default_value = "../shared/data/faust_r")]
+    dataset: PathBuf,
+    /// Pairs (default DATASET/pairs.txt).
+    #[arg(long)]
+    pairs: Option<PathBuf>,
+    /// Run only the first N pairs.
+    #[arg(long)]
+    limit: Option<usize>,
+    /// Methods, comma-separated.
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "fmap,pokrass,completion")]
+    methods: Vec<MethodChoice>,
+    /// Iteration cap of the completion optimizer.
+    #[arg(long, default_value_t = 300)]
+    max_iterations: usize,
+    /// The paper's weights taken literally (`paper`) or scale-free (`unit`, funcorr's default).
+    #[arg(long, value_enum, default_value = "unit")]
+    scaling: ScalingChoice,
+    /// Isometry prior of the completion method (funcorr's default 1e-2; 0: the paper's (11)).
+    #[arg(long, default_value_t = 1e-2)]
+    completion_commutativity: f64,
+    /// Pairs run at once (default: one per core).
+    #[arg(long)]
+    jobs: Option<usize>,
+    #[command(flatten)]
+    cache: CacheArgs,
+    /// Output directory.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// No progress bar.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+pub(crate) fn reproduce(what: &ReproduceWhat) -> Result<()> {
+    match what {
+        ReproduceWhat::Rank(a) => sweep(&a.common, Sweep::Rank { ks: &a.ks, mu3: a.mu3 }),
+        ReproduceWhat::L1(a) => sweep(&a.common, Sweep::L1 { mu3s: &a.mu3s, k: a.k }),
+        ReproduceWhat::Benchmark(a) => figure7(a),
+    }
+}
+
+enum Sweep<'a> {
+    Rank { ks: &'a [usize], mu3: f64 },
+    L1 { mu3s: &'a [f64], k: usize },
+}
+
+/// One point of a sweep.
+#[derive(serde::Serialize)]
+struct SweepRow {
+    method: String,
+    parameter: f64,
+    k: usize,
+    mu3: Option<f64>,
+    mean_soft_error: f64,
+    seconds: f64,
+    iterations: Option<u64>,
+    /// Pokrass et al.: fraction of data columns the permutation matched correctly.
+    permutation_correct: Option<f64>,
+}
+
+fn completion_options(a: &SterileArgs, k: usize, mu1: f64, mu3: f64) -> Result<CompletionOptions> {
+    let scaling = match a.scaling {
+        ScalingChoice::Paper => Scaling::Paper,
+        ScalingChoice::Unit => Scaling::Unit,
+    };
+    let mut o = CompletionOptions::paper(false, scaling);
+    (o.form, o.k_prime, o.k) = (Form::Subspace, a.kprime, k);
+    let p = &mut o.params;
+    p.mu1 = a.mu1.unwrap_or(mu1);
+    p.mu2 = a.mu2.unwrap_or(mu1);
+    (p.mu3, p.mu4, p.xi, p.mu_comm) = (mu3, 0.0, a.xi, a.completion_commutativity);
+    o.optimize.max_iterations = a.max_iterations;
+    p.validate()?;
+    Ok(o)
+}
+
+fn sweep(a: &SterileArgs, what: Sweep) -> Result<()> {
+    let (xname, yname) =
+        a.pair.split_once(',').ok_or_else(|| Error::invalid("--pair", format!("{:?}: expected X,Y", a.pair)))?;
+    let ds = Dataset::open(&a.dataset)?;
+    let prepare = |name: &str| {
+        let t = Instant::now();
+        let s = benchmark::prepare_shape(&ds, name, a.kprime, a.cache.cache().as_ref());
+        if !a.quiet {
+            eprintln!("funcorr: {name}: mesh and {} eigenpairs in {:.1} s", a.kprime, t.elapsed().as_secs_f64());
+        }
+        s
+    };
+    let (x, y) = (prepare(xname)?, prepare(yname)?);
+    let gt = ds.ground_truth(xname, yname, x.mesh.n_vertices(), y.mesh.n_vertices(), false)?;
+    let t = Instant::now();
+    let setup = Sterile::new(&x.mesh, &x.basis, &y.mesh, &y.basis, &gt, a.q, a.samples, a.geodesics.into())?;
+    if !a.quiet {
+        eprintln!(
+            "funcorr: ideal data q = {} and distances from {} template points in {:.1} s",
+            a.q,
+            setup.sample.x.len(),
+            t.elapsed().as_secs_f64()
+        );
+    }
+    // (method, k, μ3) for every point of the sweep.
+    let mut jobs: Vec<(&str, usize, f64)> = Vec::new();
+    let (name, mu1) = match what {
+        Sweep::Rank { ks, mu3 } => {
+            for &k in ks {
+                if k == 0 || k > a.kprime {
+                    return Err(Error::invalid("--ks", format!("rank {k} must be in 1..={}", a.kprime)));
+                }
+                jobs.extend([
+                    ("ground-truth", k, 0.0),
+                    ("ovsjanikov", k, 0.0),
+                    ("pokrass", k, 0.0),
+                    ("completion", k, mu3),
+                ]);
+            }
+            ("rank", 1e-8)
+        }
+        Sweep::L1 { mu3s, k } => {
+            if k == 0 || k > a.kprime {
+                return Err(Error::invalid("-k", format!("rank {k} must be in 1..={}", a.kprime)));
+            }
+            jobs.extend([("ground-truth", k, 0.0), ("ovsjanikov", k, 0.0), ("pokrass", k, 0.0)]);
+            for &m in mu3s {
+                if !(m.is_finite() && m >= 0.0) {
+                    return Err(Error::invalid("--mu3s", format!("{m}: must be finite and ≥ 0")));
+                }
+                jobs.push(("completion", k, m));
+            }
+            ("l1", 1e-4)
+        }
+    };
+    std::fs::create_dir_all(&a.output).map_err(|e| Error::io(&a.output, e))?;
+    let mut rows: Vec<SweepRow> = Vec::new();
+    for (method, k, mu3) in jobs {
+        let t = Instant::now();
+        let (mut iterations, mut permutation_correct) = (None, None);
+        let c = match method {
+            "ground-truth" => setup.ground_truth(k)?,
+            "ovsjanikov" => setup.ovsjanikov(k)?,
+            "pokrass" => {
+                let (c, right) =
+                    setup.pokrass(k, &funcorr::fmap::PokrassOptions { mu: a.pokrass_mu, ..Default::default() })?;
+                permutation_correct = Some(right);
+                c
+            }
+            _ => {
+                let (c, report) = setup.completion(&completion_options(a, k, mu1, mu3)?, a.init_k.min(a.q))?;
+                iterations = report.get("iterations").and_then(|v| v.as_u64());
+                c
+            }
+        };
+        let seconds = t.elapsed().as_secs_f64();
+        let e = setup.mean_soft_error(c.as_ref())?;
+        let parameter = if name == "rank" { k as f64 } else { mu3 };
+        if !a.quiet {
+            let extra =
+                permutation_correct.map(|p| format!(", permutation {:.0}% right", 100.0 * p)).unwrap_or_default();
+            eprintln!(
+                "funcorr: {method:<12} k {k:>4} μ3 {mu3:<8.1e} soft error ×100 {:>7.3}  ({seconds:.1} s{extra})",
+                100.0 * e
+            );
+        }
+        let mu3 = (method == "completion").then_some(mu3);
+        rows.push(SweepRow {
+            method: method.into(),
+            parameter,
+            k,
+            mu3,
+            mean_soft_error: e,
+            seconds,
+            iterations,
+            permutation_correct,
+        });
+    }
+    write_sweep(a, name, &rows)
+}
+
+fn write_sweep(a: &SterileArgs, name: &str, rows: &[SweepRow]) -> Result<()> {
+    let write = |file: String, text: String| -> Result<PathBuf> {
+        let p = a.output.join(file);
+        std::fs::write(&p, text).map_err(|e| Error::io(&p, e))?;
+        Ok(p)
+    };
+    let mut csv = String::from("method,k,mu3,mean_soft_error_x100,seconds,iterations\n");
+    for r in rows {
+        csv += &format!(
+            "{},{},{},{:.4},{:.2},{}\n",
+            r.method,
+            r.k,
+            r.mu3.map(|m| format!("{m:e}")).unwrap_or_default(),
+            100.0 * r.mean_soft_error,
+            r.seconds,
+            r.iterations.map(|i| i.to_string()).unwrap_or_default()
+        );
+    }
+    let settings = serde_json::json!({
+        "dataset": a.dataset, "pair": a.pair, "q": a.q, "kprime": a.kprime, "samples": a.samples,
+        "scaling": match a.scaling { ScalingChoice::Paper => "paper", ScalingChoice::Unit => "unit" },
+        "mu1": a.mu1, "mu2": a.mu2, "xi": a.xi, "completion_commutativity": a.completion_commutativity,
+        "max_iterations": a.max_iterations, "init_k": a.init_k, "pokrass_mu": a.pokrass_mu,
+    });
+    let mut written = vec![
+        write(format!("{name}.csv"), csv)?,
+        write(
+            format!("{name}.json"),
+            serde_json::to_string_pretty(&serde_json::json!({"settings": settings, "rows": rows})).expect("JSON"),
+        )?,
+    ];
+    // The plot: one line per method; μ3 on a log10 axis with 0 drawn one decade left of the
+    // smallest positive value; the baselines (independent of μ3) as flat lines.
+    let x_of = |r: &SweepRow| -> f64 {
+        if name == "rank" {
+            return r.parameter;
+        }
+        let min_pos = rows.iter().filter_map(|r| r.mu3).filter(|&m| m > 0.0).fold(f64::INFINITY, f64::min);
+        let floor = if min_pos.is_finite() { min_pos.log10() - 1.0 } else { -1.0 };
+        r.mu3.map(|m| if m > 0.0 { m.log10() } else { floor }).unwrap_or(f64::NAN)
+    };
+    let xs: Vec<f64> = rows.iter().map(x_of).filter(|v| v.is_finite()).collect();
+    let (lo, hi) = xs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
+    let series = ["ovsjanikov", "pokrass", "completion", "ground-truth"]
+        .iter()
+        .enumerate()
+        .filter_map(|(i, m)| {
+            let mine: Vec<&SweepRow> = rows.iter().filter(|r| r.method == *m).collect();
+            let mut points: Vec<(f64, f64)> = if name == "l1" && *m != "completion" {
+                mine.first().map(|r| vec![(lo, 100.0 * r.mean_soft_error), (hi, 100.0 * r.mean_soft_error)])?
+            } else {
+                mine.iter().map(|r| (x_of(r), 100.0 * r.mean_soft_error)).collect()
+            };
+            points.sort_by(|p, q| p.0.total_cmp(&q.0));
+            let label = match *m {
+                "ovsjanikov" => "Ovsjanikov et al. (5)",
+                "pokrass" => "Pokrass et al. (6)",
+                "ground-truth" => "ground-truth C0 (reference)",
+                _ => "matrix completion (11)",
+            };
+            (!points.is_empty()).then(|| Series {
+                label: label.into(),
+                points,
+                dashed: name == "l1" && *m != "completion",
+                color: if *m == "ground-truth" { 7 } else { i },
+                markers: name == "rank" || *m == "completion",
+            })
+        })
+        .collect();
+    let plot = LinePlot {
+        title: if name == "rank" {
+            format!("Figure 5: soft error vs rank k ({}, q = {})", a.pair.replace(',', " → "), a.q)
+        } else {
+            let k = rows.first().map(|r| r.k).unwrap_or(0);
+            format!("Figure 6: soft error vs μ3 ({}, q = {}, k = {k})", a.pair.replace(',', " → "), a.q)
+        },
+        x_label: if name == "rank" { "rank k".into() } else { "log10 μ3 (leftmost: μ3 = 0)".into() },
+        y_label: "mean soft error ×100".into(),
+        x_range: None,
+        y_range: None,
+        series,
+    };
+    let png = a.output.join(format!("{name}.png"));
+    plot.write_png(&png, 900, 600)?;
+    written.push(png);
+    outln!("{:<12} {:>5} {:>9} {:>16} {:>9}", "method", "k", "μ3", "soft error ×100", "seconds");
+    for r in rows {
+        let mu3 = r.mu3.map(|m| format!("{m:.0e}")).unwrap_or_else(|| "–".into());
+        outln!("{:<12} {:>5} {:>9} {:>16.3} {:>9.1}", r.method, r.k, mu3, 100.0 * r.mean_soft_error, r.seconds);
+    }
+    print_written(&written)
+}
+
+fn figure7(a: &ReproBenchArgs) -> Result<()> {
+    let ds = Dataset::open(&a.dataset)?;
+    let pairs = select_pairs(&ds, a.pairs.as_deref(), a.limit)?;
+    let pool = thread_pool(a.jobs)?;
+    let mut all = Vec::new();
+    let mut table = String::new();
+    let mut written = Vec::new();
+    for (setting, data) in [("scarce", DataSpec::Segments { symmetric: true }), ("rich", DataSpec::Rich)] {
+        // The paper's settings: k' = 350, k = 250 (scarce) and k' = 50, k = 30 (rich) for the
+        // completion method, k for the baselines the same, ICP refinement.
+        let mut pipe = super::default_pipeline_args()?;
+        pipe.refine = Some(super::Refine::Icp);
+        pipe.max_iterations = a.max_iterations;
+        pipe.scaling = a.scaling;
+        pipe.completion_commutativity = a.completion_commutativity;
+        let report = pool.install(|| {
+            run_benchmark(&ds, &pairs, &a.methods, data, &pipe, true, GeodesicsChoice::Exact, &a.cache, a.quiet)
+        })?;
+        let title = format!("{setting} data ({data}), {} pairs", pairs.len());
+        written.extend(report.write(&a.output.join(setting), &title)?);
+        table += &format!("## {title}\n\n{}\n", report.table());
+        for m in report.summaries().into_iter().filter(|m| m.pairs > 0) {
+            all.push((m, setting));
+        }
+    }
+    let methods: Vec<String> = a.methods.iter().map(|&m| method_name(m).to_string()).collect();
+    let curves: Vec<(String, Vec<f64>, bool, usize)> = all
+        .iter()
+        .map(|(m, setting)| {
+            let color = methods.iter().position(|n| *n == m.method).unwrap_or(0);
+            (format!("{} ({setting})", m.method), m.curve.clone(), *setting == "scarce", color)
+        })
+        .collect();
+    let title = format!("Figure 7: {} pairs of {}, symmetric, ICP", pairs.len(), a.dataset.display());
+    let png = a.output.join("benchmark.png");
+    funcorr::viz::plot::cumulative_curves(&title, &funcorr::eval::standard_thresholds(), &curves)
+        .write_png(&png, 900, 640)?;
+    let md = a.output.join("benchmark.md");
+    std::fs::write(&md, format!("# {title}\n\n{table}")).map_err(|e| Error::io(&md, e))?;
+    written.extend([png, md]);
+    outln!("{title}\n\n{table}");
+    print_written(&written)
+}
