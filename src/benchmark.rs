@@ -699,6 +699,50 @@ mod tests {
     }
 
     #[test]
+    fn data_sets_are_read_in_both_layouts() {
+        let dir = std::env::temp_dir().join(format!("funcorr_dataset_{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("corres")).unwrap();
+        let mesh = crate::primitives::icosphere(1);
+        let data = crate::io::MeshData { vertices: mesh.vertices().to_vec(), faces: mesh.faces().to_vec(), colors: None };
+        for name in ["a.off", "b.off", "b.ply"] {
+            crate::io::write_mesh(&dir.join(name), &data).unwrap();
+        }
+        std::fs::write(dir.join("notes.txt"), "not a shape").unwrap();
+        let ds = Dataset::open(&dir).unwrap();
+        assert_eq!(ds.names().collect::<Vec<_>>(), ["a", "b"]);
+        // .off is preferred over .ply for the same name.
+        assert!(ds.shape_path("b").unwrap().ends_with("b.off"));
+        assert!(ds.shape_path("c").unwrap_err().to_string().contains("\"c\""));
+        std::fs::write(dir.join("pairs.txt"), "# source target\na\tb\n\nb a  # reversed\n").unwrap();
+        assert_eq!(ds.pairs(None).unwrap(), [("a".into(), "b".into()), ("b".into(), "a".into())]);
+        std::fs::write(dir.join("pairs.txt"), "a b\na c\n").unwrap();
+        let e = ds.pairs(None).unwrap_err().to_string();
+        assert!(e.contains("pairs.txt:2") && e.contains("\"c\""), "{e}");
+        // Ground truth from corres/ (preferred) or the directory itself, 1-based.
+        std::fs::write(dir.join("corres/a.vts"), "1\n2\n3\n").unwrap();
+        std::fs::write(dir.join("b.vts"), "3\n2\n1\n").unwrap();
+        std::fs::write(dir.join("corres/b.sym.vts"), "1\n2\n").unwrap();
+        let n = mesh.n_vertices();
+        let gt = ds.ground_truth("a", "b", n, n, false).unwrap();
+        assert_eq!((gt.x, gt.y), (vec![0, 1, 2], vec![2, 1, 0]));
+        let e = ds.ground_truth("a", "b", n, n, true).unwrap_err().to_string();
+        assert!(e.contains("different lengths"), "{e}");
+        let e = ds.template("a", n, true).unwrap_err().to_string();
+        assert!(e.contains("a.sym.vts"), "{e}");
+        // Segmentations of the pair in either order.
+        std::fs::create_dir_all(dir.join("segmentation")).unwrap();
+        let labels: String = (0..n).map(|i| format!("{}\n", 1 + i % 3)).collect();
+        std::fs::write(dir.join("segmentation/b_a.a.seg.sym"), &labels).unwrap();
+        assert_eq!(ds.segmentation("a", "b", "a", n, "sym").unwrap().len(), n);
+        assert!(ds.segmentation("a", "b", "b", n, "sym").is_err());
+        // No shapes: an error naming the directory.
+        let empty = dir.join("corres");
+        assert!(Dataset::open(&empty).unwrap_err().to_string().contains("corres"));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
     fn farthest_points_spread_out() {
         let mesh = crate::primitives::icosphere(2);
         let all: Vec<usize> = (0..mesh.n_vertices()).collect();

@@ -753,3 +753,184 @@ fn eval_offers_exact_heat_and_dijkstra_geodesics() {
     let out = run(&bad);
     assert!(!out.status.success() && text(&out.stderr).contains("straight"));
 }
+
+/// Lines of a CSV file split into fields (header first).
+fn csv(path: &Path) -> Vec<Vec<String>> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect()
+}
+
+#[test]
+fn bench_on_the_bundled_data_set_writes_what_it_promises() {
+    let ds = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/faust");
+    let out = tmp("bench");
+    let o = out.to_str().unwrap();
+    // Small sizes so that the four methods finish in seconds; both directions of the pair.
+    let args = [
+        "bench",
+        "--dataset",
+        ds.to_str().unwrap(),
+        "--methods",
+        "fmap,pokrass,coupled,completion",
+        "--kprime",
+        "60",
+        "-k",
+        "30",
+        "--max-iterations",
+        "10",
+        "-q",
+        "-o",
+        o,
+    ];
+    let r = run(&args);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let stdout = text(&r.stdout);
+    assert!(stdout.contains("| method | pairs | mean error ×100"), "{stdout}");
+    for f in ["pairs.csv", "pairs.json", "summary.csv", "summary.md", "summary.json"] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    assert_png(&out.join("curves.png"), 900, 640);
+    // One row per pair and method, all scored, errors in a plausible range for 11 segments.
+    let rows = csv(&out.join("pairs.csv"));
+    assert_eq!(rows[0][..4], ["source", "target", "method", "status"]);
+    assert_eq!(rows.len(), 1 + 2 * 4);
+    for row in &rows[1..] {
+        assert_eq!(row[3], "ok", "{row:?}");
+        let mean: f64 = row[6].parse().unwrap();
+        assert!(mean.is_finite() && mean > 0.0 && mean < 25.0, "{row:?}");
+    }
+    let summary = csv(&out.join("summary.csv"));
+    assert_eq!(summary.len(), 1 + 4);
+    assert_eq!(summary[1][1], "2");
+    // The saved map re-evaluates to the same mean with `funcorr eval` (same protocol).
+    let fmap_row = rows.iter().find(|r| r[0] == "tr_reg_000" && r[2] == "fmap").unwrap();
+    let map = out.join("maps/tr_reg_000__tr_reg_001.fmap.txt");
+    assert_eq!(std::fs::read_to_string(&map).unwrap().lines().count(), 4999);
+    let e = run(&[
+        "eval",
+        "--source",
+        data("tr_reg_000.off").to_str().unwrap(),
+        "--target",
+        data("tr_reg_001.off").to_str().unwrap(),
+        "--map",
+        map.to_str().unwrap(),
+        "--gt-source",
+        data("tr_reg_000.vts").to_str().unwrap(),
+        "--gt-target",
+        data("tr_reg_001.vts").to_str().unwrap(),
+        "--gt-target-sym",
+        data("tr_reg_001.sym.vts").to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(e.status.success(), "{}", text(&e.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&e.stdout).unwrap();
+    let eval_mean = 100.0 * v["summary"]["mean"].as_f64().unwrap();
+    let bench_mean: f64 = fmap_row[6].parse().unwrap();
+    assert!((eval_mean - bench_mean).abs() < 1e-3, "{eval_mean} vs {bench_mean}");
+    // The JSON holds the curve of every pair at the 51 standard thresholds.
+    let pairs: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("pairs.json")).unwrap()).unwrap();
+    assert_eq!(pairs.as_array().unwrap().len(), 8);
+    assert_eq!(pairs[0]["curve"].as_array().unwrap().len(), 51);
+
+    // Landmark data and no symmetric flips: also runs; flips can only lower the errors.
+    let out2 = tmp("bench-landmarks");
+    let r = run(&[
+        "bench",
+        "--dataset",
+        ds.to_str().unwrap(),
+        "--methods",
+        "fmap",
+        "--data",
+        "landmarks:40",
+        "--no-symmetric",
+        "--limit",
+        "1",
+        "-k",
+        "30",
+        "-q",
+        "-o",
+        out2.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let rows = csv(&out2.join("pairs.csv"));
+    assert_eq!((rows.len(), rows[1][4].as_str()), (2, "40"));
+}
+
+#[test]
+fn bench_rejects_bad_data_sets_and_options() {
+    let ds = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/faust");
+    let d = ds.to_str().unwrap();
+    let out = tmp("bench-bad");
+    let o = out.to_str().unwrap();
+    assert_fails(&run(&["bench", "--dataset", "/nonexistent/dataset", "-o", o]), "/nonexistent/dataset");
+    assert_fails(&run(&["bench", "--dataset", d, "--data", "wks:0", "-o", o]), "--data");
+    assert_fails(&run(&["bench", "--dataset", d, "--limit", "0", "-o", o]), "--limit");
+    let pairs = out.join("pairs.txt");
+    std::fs::write(&pairs, "tr_reg_000\ttr_reg_001\n# comment\ntr_reg_000 nobody\n").unwrap();
+    assert_fails(&run(&["bench", "--dataset", d, "--pairs", pairs.to_str().unwrap(), "-o", o]), "pairs.txt:3");
+    std::fs::write(&pairs, "tr_reg_000\n").unwrap();
+    assert_fails(&run(&["bench", "--dataset", d, "--pairs", pairs.to_str().unwrap(), "-o", o]), "two shape names");
+    // A data set whose pair has no segmentation: the run completes, the pair is reported failed.
+    let copy = tmp("bench-noseg");
+    for f in ["tr_reg_000.off", "tr_reg_001.off", "tr_reg_000.vts", "tr_reg_001.vts", "tr_reg_001.sym.vts"] {
+        std::fs::copy(data(f), copy.join(f)).unwrap();
+    }
+    std::fs::write(copy.join("pairs.txt"), "tr_reg_000 tr_reg_001\n").unwrap();
+    let r = run(&["bench", "--dataset", copy.to_str().unwrap(), "--methods", "fmap", "-q", "-o", o]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert!(text(&r.stderr).contains("seg.sym"), "{}", text(&r.stderr));
+    let rows = csv(&out.join("pairs.csv"));
+    assert_eq!(rows[1][3], "failed");
+}
+
+#[test]
+fn reproduce_rank_and_l1_write_tables_and_plots() {
+    let ds = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/faust");
+    let out = tmp("reproduce");
+    let common = [
+        "--dataset",
+        ds.to_str().unwrap(),
+        "--kprime",
+        "80",
+        "--q",
+        "20",
+        "--samples",
+        "40",
+        "--max-iterations",
+        "15",
+        "--geodesics",
+        "dijkstra",
+        "--quiet",
+    ];
+    let o = out.join("rank");
+    let mut args = vec!["reproduce", "rank", "--ks", "10,40"];
+    args.extend(common);
+    args.extend(["-o", o.to_str().unwrap()]);
+    let r = run(&args);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert_png(&o.join("rank.png"), 900, 600);
+    let rows = csv(&o.join("rank.csv"));
+    assert_eq!(rows.len(), 1 + 2 * 4, "{rows:?}");
+    let soft = |method: &str, k: &str| -> f64 {
+        rows.iter().find(|r| r[0] == method && r[1] == k).unwrap()[3].parse().unwrap()
+    };
+    // With ideal data and k ≤ q, eq. (5) recovers the ground-truth map's soft error.
+    let (gt, ovs) = (soft("ground-truth", "10"), soft("ovsjanikov", "10"));
+    assert!((ovs - gt).abs() < 0.05 * gt, "eq. (5) {ovs} vs ground truth {gt}");
+    for r in &rows[1..] {
+        let e: f64 = r[3].parse().unwrap();
+        assert!(e.is_finite() && e > 0.0 && e < 100.0, "{r:?}");
+    }
+    let o = out.join("l1");
+    let mut args = vec!["reproduce", "l1", "--mu3s", "0,1e-2", "-k", "20"];
+    args.extend(common);
+    args.extend(["-o", o.to_str().unwrap()]);
+    let r = run(&args);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert_png(&o.join("l1.png"), 900, 600);
+    assert_eq!(csv(&o.join("l1.csv")).len(), 1 + 3 + 2);
+    assert_fails(&run(&["reproduce", "rank", "--dataset", ds.to_str().unwrap(), "--pair", "tr_reg_000", "-o", "x"]), "--pair");
+}
