@@ -40,6 +40,29 @@ fn assert_fails(out: &Output, needle: &str) {
     assert!(!err.contains("panicked"), "{err}");
 }
 
+/// `funcorr eval --json` of a map tr_reg_000 → tr_reg_001 of the bundled pair against its
+/// ground truth, symmetric flips allowed; the parsed JSON.
+fn eval_bundled_pair(map: &Path) -> serde_json::Value {
+    let e = run(&[
+        "eval",
+        "--source",
+        data("tr_reg_000.off").to_str().unwrap(),
+        "--target",
+        data("tr_reg_001.off").to_str().unwrap(),
+        "--map",
+        map.to_str().unwrap(),
+        "--gt-source",
+        data("tr_reg_000.vts").to_str().unwrap(),
+        "--gt-target",
+        data("tr_reg_001.vts").to_str().unwrap(),
+        "--gt-target-sym",
+        data("tr_reg_001.sym.vts").to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(e.status.success(), "{}", text(&e.stderr));
+    serde_json::from_slice(&e.stdout).unwrap()
+}
+
 #[test]
 fn info_reports_mesh_facts() {
     let f = data("tr_reg_000.off");
@@ -558,24 +581,7 @@ fn match_and_eval_on_the_bundled_pair() {
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(report["final_k"], 80);
     // Evaluate against the bundled ground truth, symmetric flips allowed.
-    let e = run(&[
-        "eval",
-        "--source",
-        xs,
-        "--target",
-        ys,
-        "--map",
-        out.join("map.txt").to_str().unwrap(),
-        "--gt-source",
-        data("tr_reg_000.vts").to_str().unwrap(),
-        "--gt-target",
-        data("tr_reg_001.vts").to_str().unwrap(),
-        "--gt-target-sym",
-        data("tr_reg_001.sym.vts").to_str().unwrap(),
-        "--json",
-    ]);
-    assert!(e.status.success(), "{}", text(&e.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&e.stdout).unwrap();
+    let v = eval_bundled_pair(&out.join("map.txt"));
     let mean = v["summary"]["mean"].as_f64().unwrap();
     assert!(mean < 0.08, "mean geodesic error {mean}"); // WKS + ZoomOut on a same-subject pair
     assert_eq!(v["curve"].as_array().unwrap().len(), 51);
@@ -809,24 +815,7 @@ fn bench_on_the_bundled_data_set_writes_what_it_promises() {
     let fmap_row = rows.iter().find(|r| r[0] == "tr_reg_000" && r[2] == "fmap").unwrap();
     let map = out.join("maps/tr_reg_000__tr_reg_001.fmap.txt");
     assert_eq!(std::fs::read_to_string(&map).unwrap().lines().count(), 4999);
-    let e = run(&[
-        "eval",
-        "--source",
-        data("tr_reg_000.off").to_str().unwrap(),
-        "--target",
-        data("tr_reg_001.off").to_str().unwrap(),
-        "--map",
-        map.to_str().unwrap(),
-        "--gt-source",
-        data("tr_reg_000.vts").to_str().unwrap(),
-        "--gt-target",
-        data("tr_reg_001.vts").to_str().unwrap(),
-        "--gt-target-sym",
-        data("tr_reg_001.sym.vts").to_str().unwrap(),
-        "--json",
-    ]);
-    assert!(e.status.success(), "{}", text(&e.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&e.stdout).unwrap();
+    let v = eval_bundled_pair(&map);
     let eval_mean = 100.0 * v["summary"]["mean"].as_f64().unwrap();
     let bench_mean: f64 = fmap_row[6].parse().unwrap();
     assert!((eval_mean - bench_mean).abs() < 1e-3, "{eval_mean} vs {bench_mean}");
