@@ -704,7 +704,8 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(dir.join("corres")).unwrap();
         let mesh = crate::primitives::icosphere(1);
-        let data = crate::io::MeshData { vertices: mesh.vertices().to_vec(), faces: mesh.faces().to_vec(), colors: None };
+        let data =
+            crate::io::MeshData { vertices: mesh.vertices().to_vec(), faces: mesh.faces().to_vec(), colors: None };
         for name in ["a.off", "b.off", "b.ply"] {
             crate::io::write_mesh(&dir.join(name), &data).unwrap();
         }

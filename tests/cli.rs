@@ -762,11 +762,7 @@ fn eval_offers_exact_heat_and_dijkstra_geodesics() {
 
 /// Lines of a CSV file split into fields (header first).
 fn csv(path: &Path) -> Vec<Vec<String>> {
-    std::fs::read_to_string(path)
-        .unwrap()
-        .lines()
-        .map(|l| l.split(',').map(str::to_string).collect())
-        .collect()
+    std::fs::read_to_string(path).unwrap().lines().map(|l| l.split(',').map(str::to_string).collect()).collect()
 }
 
 #[test]
@@ -921,5 +917,8 @@ fn reproduce_rank_and_l1_write_tables_and_plots() {
     assert!(r.status.success(), "{}", text(&r.stderr));
     assert_png(&o.join("l1.png"), 900, 600);
     assert_eq!(csv(&o.join("l1.csv")).len(), 1 + 3 + 2);
-    assert_fails(&run(&["reproduce", "rank", "--dataset", ds.to_str().unwrap(), "--pair", "tr_reg_000", "-o", "x"]), "--pair");
+    assert_fails(
+        &run(&["reproduce", "rank", "--dataset", ds.to_str().unwrap(), "--pair", "tr_reg_000", "-o", "x"]),
+        "--pair",
+    );
 }
