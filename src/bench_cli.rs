@@ -576,11 +576,11 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
             all.push((m, setting));
         }
     }
-    let methods: Vec<String> = a.methods.iter().map(|&m| method_name(m).to_string()).collect();
     let curves: Vec<(String, Vec<f64>, bool, usize)> = all
         .iter()
-        .map(|(m, setting)| {
-            let color = methods.iter().position(|n| *n == m.method).unwrap_or(0);
+        .enumerate()
+        .map(|(i, (m, setting))| {
+            let color = benchmark::method_color(&m.method, i);
             (format!("{} ({setting})", m.method), m.curve.clone(), *setting == "scarce", color)
         })
         .collect();

@@ -420,6 +420,18 @@ pub fn run_pair(ds: &Dataset, x: &PreparedShape, y: &PreparedShape, opts: &Bench
         .collect()
 }
 
+/// The plot colour of a method: fixed for the four methods of funcorr (so that every plot draws
+/// `fmap` in the same colour), else by position.
+pub fn method_color(name: &str, position: usize) -> usize {
+    match name {
+        "fmap" => 0,
+        "pokrass" => 1,
+        "coupled" => 2,
+        "completion" => 3,
+        _ => 4 + position,
+    }
+}
+
 /// Per-method results pooled over the pairs of a run.
 #[derive(Debug, Clone, Serialize)]
 pub struct MethodSummary {
@@ -593,7 +605,10 @@ impl Report {
             .into_iter()
             .enumerate()
             .filter(|(_, m)| m.pairs > 0)
-            .map(|(i, m)| (m.method, m.curve, dashed, i))
+            .map(|(i, m)| {
+                let color = method_color(&m.method, i);
+                (m.method, m.curve, dashed, color)
+            })
             .collect();
         crate::viz::plot::cumulative_curves(title, &eval::standard_thresholds(), &curves)
     }
