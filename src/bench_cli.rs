@@ -216,9 +216,10 @@ pub(crate) struct SterileArgs {
     /// Template points at which the soft error is evaluated (evenly spaced).
     #[arg(long, default_value_t = 250)]
     samples: usize,
-    /// Weight normalization of the completion method: `paper` takes the paper's weights
-    /// literally, `unit` makes them scale-free (see `funcorr match --help`).
-    #[arg(long, value_enum, default_value = "paper")]
+    /// Weight normalization of the completion method: `unit` (default) reads the paper's weights
+    /// in scale-free units, `paper` takes them literally on the mass-orthonormal bases (where the
+    /// L1 term dominates; EXPERIMENTS.md has both).
+    #[arg(long, value_enum, default_value = "unit")]
     scaling: ScalingChoice,
     /// μ1 (default: the paper's value for the figure).
     #[arg(long)]
