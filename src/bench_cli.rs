@@ -492,12 +492,12 @@ fn write_sweep(a: &SterileArgs, name: &str, rows: &[SweepRow]) -> Result<()> {
     ];
     // The plot: one line per method; μ3 on a log10 axis with 0 drawn one decade left of the
     // smallest positive value; the baselines (independent of μ3) as flat lines.
+    let min_pos = rows.iter().filter_map(|r| r.mu3).filter(|&m| m > 0.0).fold(f64::INFINITY, f64::min);
+    let floor = if min_pos.is_finite() { min_pos.log10() - 1.0 } else { -1.0 };
     let x_of = |r: &SweepRow| -> f64 {
         if name == "rank" {
             return r.parameter;
         }
-        let min_pos = rows.iter().filter_map(|r| r.mu3).filter(|&m| m > 0.0).fold(f64::INFINITY, f64::min);
-        let floor = if min_pos.is_finite() { min_pos.log10() - 1.0 } else { -1.0 };
         r.mu3.map(|m| if m > 0.0 { m.log10() } else { floor }).unwrap_or(f64::NAN)
     };
     let xs: Vec<f64> = rows.iter().map(x_of).filter(|v| v.is_finite()).collect();

@@ -574,43 +574,12 @@ impl Report {
     /// The summary as a Markdown table: method, pairs (failed), mean error ×100, fractions at
     /// r = 0.05, 0.10, 0.25 (%), seconds per pair.
     pub fn table(&self) -> String {
-        let mut s = String::from(
-            "| method | pairs | mean error ×100 | ≤ 0.05 | ≤ 0.10 | ≤ 0.25 | s / pair |\n|---|---:|---:|---:|---:|---:|---:|\n",
-        );
-        for m in self.summaries() {
-            let failed = if m.failed > 0 { format!(" ({} failed)", m.failed) } else { String::new() };
-            if m.pairs == 0 {
-                s += &format!("| {} | 0{failed} | – | – | – | – | – |\n", m.method);
-                continue;
-            }
-            s += &format!(
-                "| {} | {}{failed} | {:.2} | {:.1}% | {:.1}% | {:.1}% | {:.2} |\n",
-                m.method,
-                m.pairs,
-                100.0 * m.summary.mean,
-                100.0 * m.summary.at_005,
-                100.0 * m.summary.at_010,
-                100.0 * m.summary.at_025,
-                m.seconds_per_pair
-            );
-        }
-        s
+        table_of(&self.summaries())
     }
 
     /// The plot of the pooled cumulative curves, one line per method (dashed for scarce data).
     pub fn plot(&self, title: &str) -> crate::viz::plot::LinePlot {
-        let dashed = !self.data.is_rich();
-        let curves: Vec<(String, Vec<f64>, bool, usize)> = self
-            .summaries()
-            .into_iter()
-            .enumerate()
-            .filter(|(_, m)| m.pairs > 0)
-            .map(|(i, m)| {
-                let color = method_color(&m.method, i);
-                (m.method, m.curve, dashed, color)
-            })
-            .collect();
-        crate::viz::plot::cumulative_curves(title, &eval::standard_thresholds(), &curves)
+        plot_of(self.data, &self.summaries(), title)
     }
 
     /// Writes the run to `out` (created): `pairs.csv` (one row per pair and method),
@@ -680,7 +649,7 @@ impl Report {
             );
         }
         written.push(write("summary.csv", csv)?);
-        written.push(write("summary.md", format!("# {title}\n\n{}", self.table()))?);
+        written.push(write("summary.md", format!("# {title}\n\n{}", table_of(&summaries)))?);
         let json = serde_json::json!({
             "title": title, "data": self.data.to_string(), "symmetric": self.symmetric,
             "geodesics": self.geodesics.name(), "k": self.k, "wall_seconds": self.wall_seconds,
@@ -689,11 +658,48 @@ impl Report {
         written.push(write("summary.json", serde_json::to_string_pretty(&json).expect("plain JSON"))?);
         if summaries.iter().any(|m| m.pairs > 0) {
             let p = out.join("curves.png");
-            self.plot(title).write_png(&p, 900, 640)?;
+            plot_of(self.data, &summaries, title).write_png(&p, 900, 640)?;
             written.push(p);
         }
         Ok(written)
     }
+}
+
+/// The Markdown table of [`Report::table`] from per-method summaries.
+fn table_of(summaries: &[MethodSummary]) -> String {
+    let mut s = String::from(
+        "| method | pairs | mean error ×100 | ≤ 0.05 | ≤ 0.10 | ≤ 0.25 | s / pair |\n|---|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for m in summaries {
+        let failed = if m.failed > 0 { format!(" ({} failed)", m.failed) } else { String::new() };
+        if m.pairs == 0 {
+            s += &format!("| {} | 0{failed} | – | – | – | – | – |\n", m.method);
+            continue;
+        }
+        s += &format!(
+            "| {} | {}{failed} | {:.2} | {:.1}% | {:.1}% | {:.1}% | {:.2} |\n",
+            m.method,
+            m.pairs,
+            100.0 * m.summary.mean,
+            100.0 * m.summary.at_005,
+            100.0 * m.summary.at_010,
+            100.0 * m.summary.at_025,
+            m.seconds_per_pair
+        );
+    }
+    s
+}
+
+/// The plot of [`Report::plot`] from per-method summaries.
+fn plot_of(data: DataSpec, summaries: &[MethodSummary], title: &str) -> crate::viz::plot::LinePlot {
+    let dashed = !data.is_rich();
+    let curves: Vec<(String, Vec<f64>, bool, usize)> = summaries
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.pairs > 0)
+        .map(|(i, m)| (m.method.clone(), m.curve.clone(), dashed, method_color(&m.method, i)))
+        .collect();
+    crate::viz::plot::cumulative_curves(title, &eval::standard_thresholds(), &curves)
 }
 
 #[cfg(test)]
