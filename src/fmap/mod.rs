@@ -15,7 +15,9 @@
 //! - **Eigenvalue scale**: eigenvalues enter as λ̃ = λ / λ_max with λ_max the largest of the 2k
 //!   eigenvalues λ_X,1..k, λ_Y,1..k used, so λ̃ ∈ [0, 1] and regularizers are scale-free.
 
+pub mod axiomatic;
 pub mod coupled;
+pub mod energy;
 pub mod ovsjanikov;
 pub mod pokrass;
 

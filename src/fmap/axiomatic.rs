@@ -1,0 +1,159 @@
+//! The axiomatic functional map: the exact minimizer of the energy of [`super::energy`]
+//! (descriptor preservation, Laplacian commutativity, descriptor commutativity, orientation)
+//! between two shapes, from their bases, their face gradients and corresponding descriptors.
+//!
+//! Conventions (as in [`super`]): X has n vertices and basis Φ, Y has m and Ψ; C is k × k and
+//! maps coefficients on X to coefficients on Y. The first column of C is fixed to map the
+//! constant function on X to the constant on Y (`C e₁ = ±√(area_Y / area_X) e₁`, the sign that of
+//! the two first eigenvectors), as in Ren et al. 2018: a constraint every map satisfies, and
+//! the one datum the descriptors cannot carry after their normalization.
+
+use faer::Mat;
+use serde::{Deserialize, Serialize};
+
+use super::energy::{Energy, EnergyTerms, EnergyWeights, Mask, Orientation, SpectralSide};
+use crate::descriptors::Descriptors;
+use crate::error::{Error, Result};
+use crate::operators::{multiplication_operators, orientation_operators, FaceGradients};
+use crate::spectral::Basis;
+
+/// Options of [`axiomatic`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AxiomaticOptions {
+    /// Size k of the functional map (k × k).
+    pub k: usize,
+    /// Term weights (dimensionless, see [`super::energy`]).
+    pub weights: EnergyWeights,
+    /// Laplacian-commutativity mask.
+    pub mask: Mask,
+    /// Which maps the orientation term favours.
+    pub orientation: Orientation,
+    /// Fix the first column of C to map constants to constants.
+    pub fix_constant: bool,
+    /// Orientation operators from unit descriptor gradients (see
+    /// [`crate::operators::orientation_operators`]).
+    pub unit_gradients: bool,
+}
+
+impl Default for AxiomaticOptions {
+    fn default() -> Self {
+        AxiomaticOptions {
+            k: 30,
+            weights: EnergyWeights { descriptors: 1.0, laplacian: 1e-2, commutativity: 1.0, orientation: 1.0 },
+            mask: Mask::Resolvent { gamma: 0.5 },
+            orientation: Orientation::Preserve,
+            fix_constant: true,
+            unit_gradients: false,
+        }
+    }
+}
+
+/// One side of the problem: a basis with at least k eigenpairs, the face gradients of the shape
+/// (needed for the orientation term) and its descriptors (n × q).
+#[derive(Clone, Copy)]
+pub struct ShapeData<'a> {
+    /// The eigenbasis (n × ≥ k).
+    pub basis: &'a Basis,
+    /// Face gradients of the mesh (or triangle soup); `None` when the orientation term is off.
+    pub gradients: Option<&'a FaceGradients>,
+    /// Descriptors (n × q).
+    pub descriptors: &'a Descriptors,
+}
+
+/// Builds one side of the energy in the first k eigenpairs: coefficients Φ_kᵀ A F and the
+/// operators whose weights are > 0.
+pub fn spectral_side(
+    s: &ShapeData,
+    k: usize,
+    multiplication: bool,
+    orientation: bool,
+    unit_gradients: bool,
+    side: &str,
+) -> Result<SpectralSide> {
+    let b = s.basis;
+    if k == 0 || k > b.k() {
+        return Err(Error::invalid("k", format!("need 1 ≤ k ≤ {} (the basis size of {side}), got {k}", b.k())));
+    }
+    let f = &s.descriptors.values;
+    if f.nrows() != b.n() {
+        return Err(Error::invalid(
+            format!("descriptors of {side}"),
+            format!("{} rows for {} vertices", f.nrows(), b.n()),
+        ));
+    }
+    let phi = b.eigenvectors.subcols(0, k);
+    let af = Mat::from_fn(b.n(), f.ncols(), |i, j| b.mass[i] * f[(i, j)]);
+    let mut coefficients = Mat::<f64>::zeros(k, f.ncols());
+    faer::linalg::matmul::matmul(
+        coefficients.as_mut(),
+        faer::Accum::Replace,
+        phi.transpose(),
+        af.as_ref(),
+        1.0,
+        faer::Par::Seq,
+    );
+    let mult = if multiplication { multiplication_operators(phi, &b.mass, f.as_ref())? } else { vec![] };
+    let orient = if orientation {
+        let g = s.gradients.ok_or_else(|| {
+            Error::invalid(
+                "orientation",
+                format!("the orientation term needs the faces of {side} (a mesh or a point-cloud triangulation)"),
+            )
+        })?;
+        orientation_operators(g, phi, f.as_ref(), unit_gradients)?
+    } else {
+        vec![]
+    };
+    Ok(SpectralSide {
+        coefficients,
+        eigenvalues: b.eigenvalues[..k].to_vec(),
+        multiplication: mult,
+        orientation: orient,
+    })
+}
+
+/// The column C e₁ (k entries) that maps the constant on X to the constant on Y:
+/// ±√(area_Y / area_X) e₁, with the sign of φ₁ψ₁ (the first eigenvectors are constant).
+pub fn constant_column(x: &Basis, y: &Basis, k: usize) -> Vec<f64> {
+    let ax: f64 = x.mass.iter().sum();
+    let ay: f64 = y.mass.iter().sum();
+    let sign = (x.eigenvectors[(0, 0)] * y.eigenvectors[(0, 0)]).signum();
+    let mut col = vec![0.0; k];
+    col[0] = sign * (ay / ax).sqrt();
+    col
+}
+
+/// What [`axiomatic`] returns besides C.
+#[derive(Clone, Debug, Serialize)]
+pub struct AxiomaticReport {
+    /// The terms of the energy at the solution (each divided by its scale).
+    pub terms: EnergyTerms,
+    /// E at the solution.
+    pub energy: f64,
+}
+
+/// The functional map C (k × k) minimizing the axiomatic energy between X and Y (see the module
+/// docs). Errors: bases smaller than k, descriptors of different column counts or sizes, the
+/// orientation term without face gradients, and those of [`Energy::new`].
+pub fn axiomatic(x: &ShapeData, y: &ShapeData, opts: &AxiomaticOptions) -> Result<(Mat<f64>, AxiomaticReport)> {
+    let k = opts.k;
+    let w = &opts.weights;
+    let orient = w.orientation > 0.0 && opts.orientation != Orientation::Ignore;
+    let comm = w.commutativity > 0.0;
+    if x.descriptors.q() != y.descriptors.q() {
+        return Err(Error::invalid(
+            "data",
+            format!("{} functions on X but {} on Y; they must correspond", x.descriptors.q(), y.descriptors.q()),
+        ));
+    }
+    let sx = spectral_side(x, k, comm, orient, opts.unit_gradients, "X")?;
+    let sy = spectral_side(y, k, comm, orient, opts.unit_gradients, "Y")?;
+    let energy = Energy::new(&sx, &sy, w, opts.mask, opts.orientation)?;
+    let c = if opts.fix_constant {
+        energy.solve_with_first_column(&constant_column(x.basis, y.basis, k))?
+    } else {
+        energy.solve()?
+    };
+    let report = AxiomaticReport { terms: energy.terms(c.as_ref()), energy: energy.value(c.as_ref()) };
+    Ok((c, report))
+}
