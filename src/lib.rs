@@ -20,6 +20,7 @@
 //! ```
 
 pub mod benchmark;
+pub mod cloud;
 pub mod completion;
 pub mod descriptors;
 pub mod error;
@@ -30,10 +31,15 @@ pub mod geodesic;
 pub mod io;
 pub mod laplacian;
 pub mod matching;
+pub mod operators;
 pub mod pointwise;
+pub mod prepared;
 pub mod primitives;
+pub mod refine;
+mod rng;
 pub mod shape;
 pub mod spectral;
 pub mod viz;
 
 pub use error::{Error, Result};
+pub use prepared::PreparedShape;

@@ -380,6 +380,38 @@ impl TriMesh {
         TriMesh::new(self.vertices.iter().map(|&p| f(p)).collect(), self.faces.clone())
     }
 
+    /// `count` points drawn uniformly on the surface (triangles chosen with probability
+    /// proportional to their area, uniform barycentric coordinates), deterministic for a seed:
+    /// a point cloud that shares no vertex with the mesh. Errors: count = 0, or no area.
+    pub fn sample_surface(&self, count: usize, seed: u64) -> Result<Vec<[f64; 3]>> {
+        if count == 0 {
+            return Err(Error::invalid("count", "need at least one point"));
+        }
+        let areas = self.face_areas();
+        let mut cumulative = Vec::with_capacity(areas.len());
+        let mut total = 0.0;
+        for a in &areas {
+            total += a;
+            cumulative.push(total);
+        }
+        if !(total > 0.0 && total.is_finite()) {
+            return Err(Error::invalid("mesh", "it has no area to sample"));
+        }
+        let mut rng = crate::rng::Normal::new(seed);
+        Ok((0..count)
+            .map(|_| {
+                let t = rng.uniform() * total;
+                let f = cumulative.partition_point(|&c| c < t).min(areas.len() - 1);
+                let (mut u, mut v) = (rng.uniform(), rng.uniform());
+                if u + v > 1.0 {
+                    (u, v) = (1.0 - u, 1.0 - v);
+                }
+                let [a, b, c] = self.corners(f);
+                std::array::from_fn(|d| a[d] + u * (b[d] - a[d]) + v * (c[d] - a[d]))
+            })
+            .collect())
+    }
+
     /// The vertices as a point cloud (faces dropped), as in the paper's mesh-to-point-cloud
     /// experiment.
     pub fn to_point_set(&self) -> PointSet {
