@@ -63,6 +63,7 @@ pub(crate) struct BenchArgs {
 
 fn method_name(m: MethodChoice) -> &'static str {
     match m {
+        MethodChoice::Axiomatic => "axiomatic",
         MethodChoice::Fmap => "fmap",
         MethodChoice::Pokrass => "pokrass",
         MethodChoice::Coupled => "coupled",
@@ -371,9 +372,9 @@ fn sweep(a: &SterileArgs, what: Sweep) -> Result<()> {
         s
     };
     let (x, y) = (prepare(xname)?, prepare(yname)?);
-    let gt = ds.ground_truth(xname, yname, x.mesh.n_vertices(), y.mesh.n_vertices(), false)?;
+    let gt = ds.ground_truth(xname, yname, x.mesh().n_vertices(), y.mesh().n_vertices(), false)?;
     let t = Instant::now();
-    let setup = Sterile::new(&x.mesh, &x.basis, &y.mesh, &y.basis, &gt, a.q, a.samples, a.geodesics.into())?;
+    let setup = Sterile::new(x.mesh(), x.basis(), y.mesh(), y.basis(), &gt, a.q, a.samples, a.geodesics.into())?;
     if !a.quiet {
         eprintln!(
             "funcorr: ideal data q = {} and distances from {} template points in {:.1} s",

@@ -24,10 +24,10 @@ use crate::error::{Error, Result};
 use crate::eval::{self, GroundTruth, Summary};
 use crate::geodesic::GeodesicMethod;
 use crate::io::indices::{read_index_list_file, read_labels_file};
-use crate::laplacian::{self, Laplacian};
+
 use crate::matching::{self, MatchOptions};
 use crate::shape::{Shape, TriMesh};
-use crate::spectral::{self, Basis, BasisCache, SpectralOptions};
+use crate::spectral::{Basis, BasisCache};
 
 /// Shape file extensions a data set may use, in order of preference.
 const MESH_EXTENSIONS: [&str; 3] = ["off", "obj", "ply"];
@@ -216,32 +216,42 @@ impl FromStr for DataSpec {
     }
 }
 
-/// A shape of the data set ready for matching: mesh, Laplacian and eigenbasis.
-#[derive(Debug, Clone)]
+/// A shape of the data set ready for matching: its name, mesh, Laplacian, eigenbasis and surface
+/// geometry ([`crate::prepared::PreparedShape`]).
+#[derive(Debug)]
 pub struct PreparedShape {
     /// Name in the data set.
     pub name: String,
-    /// The mesh.
-    pub mesh: TriMesh,
-    /// Its cotangent Laplacian.
-    pub laplacian: Laplacian,
-    /// Its first k eigenpairs.
-    pub basis: Basis,
+    /// The mesh, its Laplacian, basis and geometry.
+    pub prepared: crate::prepared::PreparedShape,
     /// Seconds to read, assemble and solve (or load from the cache).
     pub seconds: f64,
+}
+
+impl PreparedShape {
+    /// The mesh.
+    pub fn mesh(&self) -> &TriMesh {
+        match &self.prepared.shape {
+            Shape::Mesh(m) => m,
+            Shape::Points(_) => unreachable!("data set shapes are meshes (checked by prepare_shape)"),
+        }
+    }
+    /// The eigenbasis.
+    pub fn basis(&self) -> &Basis {
+        &self.prepared.basis
+    }
 }
 
 /// Loads shape `name`, its cotangent Laplacian and `k` eigenpairs (through `cache` when given).
 pub fn prepare_shape(ds: &Dataset, name: &str, k: usize, cache: Option<&BasisCache>) -> Result<PreparedShape> {
     let t = Instant::now();
     let path = ds.shape_path(name)?;
-    let Shape::Mesh(mesh) = Shape::load(path)? else {
+    let shape = Shape::load(path)?;
+    if !matches!(shape, Shape::Mesh(_)) {
         return Err(Error::invalid("dataset", format!("{} is not a triangle mesh", path.display())));
-    };
-    let laplacian = laplacian::cotangent(&mesh)?;
-    let (basis, _) = spectral::eigen_basis_cached(&laplacian, &SpectralOptions::new(k), cache, None)?;
-    let basis = if basis.k() > k { basis.truncate(k)? } else { basis };
-    Ok(PreparedShape { name: name.to_string(), mesh, laplacian, basis, seconds: t.elapsed().as_secs_f64() })
+    }
+    let prepared = crate::prepared::PreparedShape::new(shape, crate::prepared::LaplacianChoice::Cotangent, k, cache)?;
+    Ok(PreparedShape { name: name.to_string(), prepared, seconds: t.elapsed().as_secs_f64() })
 }
 
 /// Farthest-point sampling of `count` of the `candidates` (vertex ids of `mesh`) by Euclidean
@@ -281,22 +291,22 @@ pub fn pair_data(
 ) -> Result<(Descriptors, Descriptors)> {
     let segments = |symmetric: bool| -> Result<(Descriptors, Descriptors)> {
         let suffix = if symmetric { "sym" } else { "nonsym" };
-        let la = ds.segmentation(&x.name, &y.name, &x.name, x.mesh.n_vertices(), suffix)?;
-        let lb = ds.segmentation(&x.name, &y.name, &y.name, y.mesh.n_vertices(), suffix)?;
+        let la = ds.segmentation(&x.name, &y.name, &x.name, x.mesh().n_vertices(), suffix)?;
+        let lb = ds.segmentation(&x.name, &y.name, &y.name, y.mesh().n_vertices(), suffix)?;
         desc::matched_segments(&la, &lb)
     };
     match spec {
         DataSpec::Segments { symmetric } => segments(symmetric),
-        DataSpec::Wks(count) => Ok((sig::wks(&x.basis, count, true)?, sig::wks(&y.basis, count, true)?)),
+        DataSpec::Wks(count) => Ok((sig::wks(x.basis(), count, true)?, sig::wks(y.basis(), count, true)?)),
         DataSpec::Rich => {
             let (fs, gs) = segments(true)?;
-            desc::rich(&x.basis, &y.basis, &fs, &gs, 100, 100)
+            desc::rich(x.basis(), y.basis(), &fs, &gs, 100, 100)
         }
         DataSpec::Landmarks(count) => {
-            let picks = farthest_points(&x.mesh, &gt.x, count);
+            let picks = farthest_points(x.mesh(), &gt.x, count);
             let xs: Vec<usize> = picks.iter().map(|&i| gt.x[i]).collect();
             let ys: Vec<usize> = picks.iter().map(|&i| gt.y[i]).collect();
-            Ok((desc::landmarks(x.mesh.n_vertices(), &xs)?, desc::landmarks(y.mesh.n_vertices(), &ys)?))
+            Ok((desc::landmarks(x.mesh().n_vertices(), &xs)?, desc::landmarks(y.mesh().n_vertices(), &ys)?))
         }
     }
 }
@@ -375,7 +385,7 @@ pub fn run_pair(ds: &Dataset, x: &PreparedShape, y: &PreparedShape, opts: &Bench
             })
             .collect()
     };
-    let (n, m) = (x.mesh.n_vertices(), y.mesh.n_vertices());
+    let (n, m) = (x.mesh().n_vertices(), y.mesh().n_vertices());
     let gt = match ds.ground_truth(&x.name, &y.name, n, m, opts.symmetric) {
         Ok(gt) => gt,
         Err(e) => return fail(e.to_string()),
@@ -386,7 +396,7 @@ pub fn run_pair(ds: &Dataset, x: &PreparedShape, y: &PreparedShape, opts: &Bench
         Err(e) => return fail(format!("data {}: {e}", opts.data)),
     };
     let data_seconds = t.elapsed().as_secs_f64();
-    let geo = match opts.geodesics.build(&y.mesh) {
+    let geo = match opts.geodesics.build(y.mesh()) {
         Ok(g) => g,
         Err(e) => return fail(format!("geodesics on {}: {e}", y.name)),
     };
@@ -395,8 +405,8 @@ pub fn run_pair(ds: &Dataset, x: &PreparedShape, y: &PreparedShape, opts: &Bench
         .iter()
         .map(|method| {
             let score = || -> Result<PairScore> {
-                let r = matching::run(&x.basis, &y.basis, Some((&x.laplacian, &y.laplacian)), &f, &g, &method.options)?;
-                let errors = eval::hard_errors(&r.map_xy, &gt, &*geo, y.mesh.total_area())?;
+                let r = matching::run_prepared(&x.prepared, &y.prepared, &f, &g, &method.options)?;
+                let errors = eval::hard_errors(&r.map_xy, &gt, &*geo, y.mesh().total_area())?;
                 let mut stages = vec![("data".to_string(), data_seconds)];
                 stages.extend(r.stages);
                 Ok(PairScore {

@@ -75,8 +75,12 @@ enum Command {
 enum LaplacianChoice {
     /// Cotangent weights with barycentric lumped mass (paper eq. (2)); meshes only. Default for meshes.
     Cotan,
+    /// The point-cloud Laplacian of local Delaunay triangulations of --cloud-neighbours nearest
+    /// neighbours (Sharp & Crane 2020): spectrum and mass agree with the cotangent Laplacian of
+    /// the sampled surface. 3-D points (a mesh is used as its vertices). Default for 3-D point sets.
+    Cloud,
     /// Symmetric K-nearest-neighbour graph with Gaussian weights (paper eq. (1)); any shape
-    /// (a mesh is used as its point cloud). Default for point sets.
+    /// (a mesh is used as its point cloud). Default for point sets of other dimensions.
     Knn,
 }
 
@@ -91,9 +95,13 @@ enum WeightsChoice {
 /// How to build the Laplacian of a shape.
 #[derive(clap::Args)]
 struct LaplacianArgs {
-    /// Laplacian discretization (default: cotan for meshes, knn for point sets).
+    /// Laplacian discretization (default: cotan for meshes, cloud for 3-D point sets, knn for
+    /// other point sets).
     #[arg(long, value_enum)]
     laplacian: Option<LaplacianChoice>,
+    /// Neighbours of the point-cloud Laplacian's local triangulations.
+    #[arg(long, default_value_t = funcorr::cloud::DEFAULT_NEIGHBOURS)]
+    cloud_neighbours: usize,
     /// Number of neighbours K of the kNN graph.
     #[arg(long = "knn", default_value_t = 10)]
     knn_k: usize,
@@ -264,6 +272,10 @@ enum Refine {
 
 #[derive(Clone, Copy, PartialEq, ValueEnum)]
 enum MethodChoice {
+    /// The orientation-aware axiomatic functional map (descriptor preservation, resolvent
+    /// Laplacian commutativity, descriptor commutativity, orientation; signed descriptors),
+    /// the best of several sizes after ZoomOut, refined by ZoomOut. The default.
+    Axiomatic,
     /// Ovsjanikov et al. 2012, eq. (5) (least squares, optional Laplacian commutativity).
     Fmap,
     /// Pokrass et al. 2013, eq. (6) (permuted sparse coding).
@@ -272,6 +284,24 @@ enum MethodChoice {
     Coupled,
     /// Kovnatsky et al. 2015, eqs. (8)–(11) (matrix completion; see --form).
     Completion,
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum OrientationChoice {
+    /// Orientation-preserving maps (two scans of the same kind of object).
+    Preserve,
+    /// Orientation-reversing maps (a shape and a mirror image).
+    Reverse,
+    /// No orientation term and no signed descriptors.
+    Ignore,
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum MaskChoice {
+    /// The resolvent mask of Ren et al. 2019 (γ = 0.5).
+    Resolvent,
+    /// The standard (λᵢ − λⱼ)² mask.
+    Standard,
 }
 
 #[derive(Clone, Copy, PartialEq, ValueEnum)]
@@ -394,12 +424,42 @@ struct PipelineArgs {
     /// Maximum number of ICP iterations.
     #[arg(long, default_value_t = 10)]
     icp_iterations: usize,
-    /// Final size of ZoomOut.
-    #[arg(long, default_value_t = 150)]
-    zoomout_to: usize,
-    /// Size increment per ZoomOut iteration (1 as in Melzi et al.; larger is faster).
-    #[arg(long, default_value_t = 1)]
-    zoomout_step: usize,
+    /// Final size of ZoomOut (default: 110 for axiomatic, 150 for the other methods).
+    #[arg(long)]
+    zoomout_to: Option<usize>,
+    /// Size increment per ZoomOut iteration (default: 5 for axiomatic, 1 for the others, as in
+    /// Melzi et al.).
+    #[arg(long)]
+    zoomout_step: Option<usize>,
+    /// Farthest-point samples of X the axiomatic method's ZoomOut maps are computed on (0: every
+    /// vertex).
+    #[arg(long, default_value_t = 2000)]
+    zoomout_samples: usize,
+    /// Which maps the axiomatic method looks for (orientation term and signed descriptors).
+    #[arg(long, value_enum, default_value = "preserve")]
+    orientation: OrientationChoice,
+    /// Signed (orientation) descriptors the axiomatic method adds to the data.
+    #[arg(long, default_value_t = 10)]
+    signed: usize,
+    /// Sizes k of the axiomatic method's candidate functional maps (the one with the least
+    /// metric distortion after a short ZoomOut is kept).
+    #[arg(long, value_delimiter = ',', default_value = "20,30,40,50")]
+    candidates: Vec<usize>,
+    /// Weight of descriptor preservation in the axiomatic energy.
+    #[arg(long, default_value_t = 1.0)]
+    w_descriptors: f64,
+    /// Weight of Laplacian commutativity in the axiomatic energy.
+    #[arg(long, default_value_t = 0.1)]
+    w_laplacian: f64,
+    /// Weight of descriptor commutativity in the axiomatic energy.
+    #[arg(long, default_value_t = 1.0)]
+    w_commutativity: f64,
+    /// Weight of the orientation term in the axiomatic energy.
+    #[arg(long, default_value_t = 3.0)]
+    w_orientation: f64,
+    /// Laplacian-commutativity mask of the axiomatic energy.
+    #[arg(long, value_enum, default_value = "resolvent")]
+    mask: MaskChoice,
 }
 
 #[derive(clap::Args)]
@@ -408,14 +468,15 @@ struct MatchArgs {
     x: PathBuf,
     /// Target shape Y.
     y: PathBuf,
-    /// Corresponding data: `wks:N`, `hks:N`, `wks+hks:N`, `segments:X.seg,Y.seg` (labels that
+    /// Corresponding data: `wks` (the default: 100 WKS energies from the first 128 eigenpairs,
+    /// every 2nd kept), `wks:N` (N from the whole basis), `hks:N`, `wks+hks:N`, `segments:X.seg,Y.seg` (labels that
     /// agree between the files), `persistence`, `mser`, `landmarks:pairs.txt` (0-based `i j`
     /// per line), `rich` (100 WKS + 100 heat kernel maps localized on the persistence segments,
     /// the paper's rich data) or `rich:X.seg,Y.seg` (on given segments), or `matrix:F.npy,G.npy`.
-    #[arg(long, default_value = "wks:100")]
+    #[arg(long, default_value = "wks")]
     data: String,
     /// Functional-map method.
-    #[arg(long, value_enum, default_value = "fmap")]
+    #[arg(long, value_enum, default_value = "axiomatic")]
     method: MethodChoice,
     #[command(flatten)]
     pipe: PipelineArgs,
@@ -610,6 +671,27 @@ fn shape_basis(
     Ok((lap, basis))
 }
 
+/// A shape prepared for matching: its Laplacian (and surface: the mesh or the point cloud's
+/// triangulation), and its basis through the cache.
+fn prepared_shape(
+    shape: Shape,
+    lap_args: &LaplacianArgs,
+    cache: &CacheArgs,
+    k: usize,
+    st: &mut Stages,
+) -> Result<funcorr::PreparedShape> {
+    let named = |e: Error| match e {
+        Error::Invalid { what, msg } if what == "laplacian" => Error::invalid("--laplacian", msg),
+        e => e,
+    };
+    let (lap, surface) =
+        st.run("laplacian", || funcorr::prepared::build_laplacian(&shape, laplacian_choice(lap_args)).map_err(named))?;
+    let c = cache.cache();
+    let basis =
+        st.run("eigenbasis", || spectral::eigen_basis_cached(&lap, &SpectralOptions::new(k), c.as_ref(), None))?.0;
+    Ok(funcorr::PreparedShape::from_parts(shape, lap, basis, surface))
+}
+
 /// `println!` that ends the program quietly when stdout is closed early (`funcorr … | head`),
 /// as a well-behaved Unix filter does, instead of panicking.
 macro_rules! outln {
@@ -719,28 +801,30 @@ fn mesh_facts(m: &TriMesh) -> Vec<(&'static str, serde_json::Value)> {
     ]
 }
 
-fn build_laplacian(shape: &Shape, args: &LaplacianArgs) -> Result<Laplacian> {
-    let choice = args.laplacian.unwrap_or(match shape {
-        Shape::Mesh(_) => LaplacianChoice::Cotan,
-        Shape::Points(_) => LaplacianChoice::Knn,
-    });
-    match (choice, shape) {
-        (LaplacianChoice::Cotan, Shape::Mesh(m)) => laplacian::cotangent(m),
-        (LaplacianChoice::Cotan, Shape::Points(_)) => {
-            Err(Error::invalid("--laplacian", "cotan needs a triangle mesh; this file has no faces (use knn)"))
-        }
-        (LaplacianChoice::Knn, s) => {
-            let opts = KnnOptions {
-                k: args.knn_k,
-                vertex_weights: match args.vertex_weights {
-                    WeightsChoice::Identity => VertexWeights::Identity,
-                    WeightsChoice::Degree => VertexWeights::Degree,
-                },
-                bandwidth: args.sigma.map_or(Bandwidth::SelfTuning, Bandwidth::Fixed),
-            };
-            laplacian::knn_graph(&s.to_point_set(), &opts)
-        }
+/// The library's Laplacian choice for the CLI's arguments.
+fn laplacian_choice(args: &LaplacianArgs) -> funcorr::prepared::LaplacianChoice {
+    use funcorr::prepared::LaplacianChoice as L;
+    match args.laplacian {
+        None => L::Auto,
+        Some(LaplacianChoice::Cotan) => L::Cotangent,
+        Some(LaplacianChoice::Cloud) => L::Cloud { k: args.cloud_neighbours },
+        Some(LaplacianChoice::Knn) => L::Knn(KnnOptions {
+            k: args.knn_k,
+            vertex_weights: match args.vertex_weights {
+                WeightsChoice::Identity => VertexWeights::Identity,
+                WeightsChoice::Degree => VertexWeights::Degree,
+            },
+            bandwidth: args.sigma.map_or(Bandwidth::SelfTuning, Bandwidth::Fixed),
+        }),
     }
+}
+
+fn build_laplacian(shape: &Shape, args: &LaplacianArgs) -> Result<Laplacian> {
+    let named = |e: Error| match e {
+        Error::Invalid { what, msg } if what == "laplacian" => Error::invalid("--laplacian", msg),
+        e => e,
+    };
+    Ok(funcorr::prepared::build_laplacian(shape, laplacian_choice(args)).map_err(named)?.0)
 }
 
 fn progress_bar(k: usize, quiet: bool) -> ProgressBar {
@@ -975,6 +1059,10 @@ fn pair_data(
         }
     };
     match kind {
+        "wks" if arg.is_empty() => {
+            let r = sig::WksRecipe::default();
+            Ok((sig::wks_recipe(bx, &r)?, sig::wks_recipe(by, &r)?))
+        }
         "wks" => Ok((sigs(bx, true, false, count()?)?, sigs(by, true, false, count()?)?)),
         "hks" => Ok((sigs(bx, false, true, count()?)?, sigs(by, false, true, count()?)?)),
         "wks+hks" => Ok((sigs(bx, true, true, count()?)?, sigs(by, true, true, count()?)?)),
@@ -1105,8 +1193,54 @@ fn pipeline_options(p: &PipelineArgs, method: MethodChoice, rich: bool) -> Resul
     if !(commutativity.is_finite() && commutativity >= 0.0) {
         return Err(Error::invalid("--commutativity", "must be finite and ≥ 0"));
     }
+    let axiomatic = {
+        use funcorr::fmap::energy::{EnergyWeights, Mask, Orientation};
+        let mut a = funcorr::matching::axiomatic::AxiomaticPipeline::default();
+        a.fit.weights = EnergyWeights {
+            descriptors: p.w_descriptors,
+            laplacian: p.w_laplacian,
+            commutativity: p.w_commutativity,
+            orientation: p.w_orientation,
+        };
+        a.fit.mask = match p.mask {
+            MaskChoice::Resolvent => Mask::Resolvent { gamma: 0.5 },
+            MaskChoice::Standard => Mask::Standard,
+        };
+        a.fit.orientation = match p.orientation {
+            OrientationChoice::Preserve => Orientation::Preserve,
+            OrientationChoice::Reverse => Orientation::Reverse,
+            OrientationChoice::Ignore => Orientation::Ignore,
+        };
+        a.signed = p.signed;
+        a.candidates = p.candidates.clone();
+        if let Some(k) = p.zoomout_to {
+            a.refine.k_final = k;
+        }
+        if let Some(s) = p.zoomout_step {
+            a.refine.step = s;
+        }
+        a.refine.samples = p.zoomout_samples;
+        for (flag, v) in [
+            ("--w-descriptors", p.w_descriptors),
+            ("--w-laplacian", p.w_laplacian),
+            ("--w-commutativity", p.w_commutativity),
+            ("--w-orientation", p.w_orientation),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::invalid(flag, format!("must be finite and ≥ 0, got {v}")));
+            }
+        }
+        if a.candidates.is_empty() || a.candidates.contains(&0) {
+            return Err(Error::invalid("--candidates", "need one or more sizes ≥ 1"));
+        }
+        if a.refine.step == 0 {
+            return Err(Error::invalid("--zoomout-step", "must be at least 1"));
+        }
+        a
+    };
     Ok(MatchOptions {
         method: match method {
+            MethodChoice::Axiomatic => Method::Axiomatic,
             MethodChoice::Fmap => Method::Fmap,
             MethodChoice::Pokrass => Method::Pokrass,
             MethodChoice::Coupled => Method::Coupled,
@@ -1128,8 +1262,9 @@ fn pipeline_options(p: &PipelineArgs, method: MethodChoice, rich: bool) -> Resul
         },
         refine_k: p.refine_k,
         icp: funcorr::pointwise::IcpOptions { max_iterations: p.icp_iterations },
-        zoomout_to: p.zoomout_to,
-        zoomout_step: p.zoomout_step,
+        zoomout_to: p.zoomout_to.unwrap_or(150),
+        zoomout_step: p.zoomout_step.unwrap_or(1),
+        axiomatic,
         ..MatchOptions::default()
     })
 }
@@ -1195,10 +1330,13 @@ fn match_shapes(args: &MatchArgs) -> Result<()> {
     if let Some(&bad) = args.soft.iter().find(|&&i| i >= x.n_vertices()) {
         return Err(Error::invalid("--soft", format!("vertex {bad} of X does not exist (n = {})", x.n_vertices())));
     }
-    let (lx, bx) = shape_basis(&x, &args.lap, &args.cache, basis_k, None, &mut st)?;
-    let (ly, by) = shape_basis(&y, &args.lap, &args.cache, basis_k, None, &mut st)?;
-    let (f, g) = st.run("data", || pair_data(&args.data, (&x, &lx, &bx), (&y, &ly, &by), &args.seg))?;
-    let r = funcorr::matching::run(&bx, &by, Some((&lx, &ly)), &f, &g, &opts)?;
+    let px = prepared_shape(x, &args.lap, &args.cache, basis_k, &mut st)?;
+    let py = prepared_shape(y, &args.lap, &args.cache, basis_k, &mut st)?;
+    let (f, g) = st.run("data", || {
+        pair_data(&args.data, (&px.shape, &px.laplacian, &px.basis), (&py.shape, &py.laplacian, &py.basis), &args.seg)
+    })?;
+    let r = funcorr::matching::run_prepared(&px, &py, &f, &g, &opts)?;
+    let (x, y, bx, by) = (&px.shape, &py.shape, &px.basis, &py.basis);
     for (name, secs) in &r.stages {
         st.note(format!("{name} {secs:.3} s"));
     }
@@ -1226,7 +1364,7 @@ fn match_shapes(args: &MatchArgs) -> Result<()> {
                 &out.join(format!("soft_{i}.npy")),
                 &funcorr::io::DenseMatrix { rows: t.len(), cols: 1, data: t.clone() },
             )?;
-            if let Some(mut dy) = mesh_data(&y) {
+            if let Some(mut dy) = mesh_data(y) {
                 dy.colors = Some(funcorr::viz::diverging_colors(&t));
                 funcorr::io::write_mesh(&out.join(format!("soft_{i}.ply")), &dy)?;
             }
@@ -1239,12 +1377,13 @@ fn match_shapes(args: &MatchArgs) -> Result<()> {
             "basis_size": basis_k,
             "final_k": r.c.nrows(),
             "solver": r.solver,
+            "candidates": r.candidates.as_ref().map(|(c, i)| serde_json::json!({"candidates": c, "chosen": i})),
             "stages": r.stages.iter().map(|(n, s)| serde_json::json!({"stage": n, "seconds": s})).collect::<Vec<_>>(),
             "log": stages,
         });
         let p = out.join("report.json");
         std::fs::write(&p, serde_json::to_string_pretty(&report).expect("plain JSON")).map_err(|e| Error::io(&p, e))?;
-        write_colour_transfer(out, &x, &y, &r.map_yx, (!args.no_render).then_some((size, &view)))
+        write_colour_transfer(out, x, y, &r.map_yx, (!args.no_render).then_some((size, &view)))
     })?;
     st.note(format!("q {} | C {}×{}", f.q(), r.c.nrows(), r.c.ncols()));
     st.finish();
@@ -1410,6 +1549,13 @@ fn demo_match(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&TriMesh, &Ba
 fn describe(args: &MatchArgs, opts: &funcorr::matching::MatchOptions) -> String {
     use funcorr::matching::{Method, Refine as R};
     let method = match opts.method {
+        Method::Axiomatic => {
+            let a = &opts.axiomatic;
+            return format!(
+                "data {} + {} signed, axiomatic functional maps (k = {:?}, orientation {:?}), best of the candidates after ZoomOut to {}, ZoomOut to {}",
+                args.data, a.signed, a.candidates, a.fit.orientation, a.probe.k_final, a.refine.k_final
+            );
+        }
         Method::Fmap if opts.commutativity > 0.0 => {
             format!("eq. (5) with Laplacian commutativity μ_c = {}, k = {}", opts.commutativity, opts.k)
         }

@@ -203,6 +203,68 @@ pub fn rich(
     Ok((side(bx, f_seg)?, side(by, g_seg)?))
 }
 
+/// Every column divided by its L2(A) norm √(fᵀ A f) (A the vertex weights, length n), as pyFM
+/// normalizes its descriptors: each then weighs the same in the functional-map energy whatever
+/// its magnitude. Errors: a size mismatch, or a column of zero norm (named).
+pub fn normalized(d: &Descriptors, mass: &[f64]) -> Result<Descriptors> {
+    if mass.len() != d.n() {
+        return Err(Error::invalid("descriptors", format!("{} weights for {} vertices", mass.len(), d.n())));
+    }
+    let norms: Vec<f64> = (0..d.q())
+        .map(|j| d.values.col_as_slice(j).iter().zip(mass).map(|(v, a)| a * v * v).sum::<f64>().sqrt())
+        .collect();
+    if let Some(j) = norms.iter().position(|&x| !(x > 0.0 && x.is_finite())) {
+        return Err(Error::invalid("descriptors", format!("column {j} ({}) is zero everywhere", d.names[j])));
+    }
+    Descriptors::new(Mat::from_fn(d.n(), d.q(), |i, j| d.values[(i, j)] / norms[j]), d.names.clone())
+}
+
+/// `count` signed (orientation) descriptors from the columns of `d`: the orientation functions
+/// n · (∇f_a × ∇f_b) ([`crate::operators::orientation_function`]) of `count` pairs of columns
+/// (a, b) spread over the columns (a = 7t mod q, b = a + 1 + (3t mod (q − 1)) mod q for t = 0, 1, …),
+/// low-passed to the first `smooth_k` eigenfunctions of `basis` (the product of two gradients is
+/// rough) and normalized ([`normalized`]). Intrinsic descriptors such as the WKS are symmetric
+/// under a shape's left–right symmetry; these change sign under it (and under any
+/// orientation-reversing map), so they tell left from right once the surface is oriented.
+/// Named `signed:a,b`. Errors: fewer than 2 columns, count = 0, sizes that do not match.
+pub fn signed(
+    d: &Descriptors,
+    grads: &crate::operators::FaceGradients,
+    basis: &Basis,
+    count: usize,
+    smooth_k: usize,
+) -> Result<Descriptors> {
+    let (n, q) = (d.n(), d.q());
+    if q < 2 || count == 0 {
+        return Err(Error::invalid(
+            "signed descriptors",
+            format!("need ≥ 2 descriptors and count ≥ 1, got {q} and {count}"),
+        ));
+    }
+    if basis.n() != n || grads.n() != n {
+        return Err(Error::invalid(
+            "signed descriptors",
+            format!("{n} rows, basis {} and mesh {} vertices", basis.n(), grads.n()),
+        ));
+    }
+    let ks = smooth_k.clamp(1, basis.k());
+    let phi = basis.eigenvectors.subcols(0, ks);
+    let mut values = Mat::<f64>::zeros(n, count);
+    let mut names = Vec::with_capacity(count);
+    for t in 0..count {
+        let a = (7 * t) % q;
+        let b = (a + 1 + (3 * t) % (q - 1)) % q;
+        let h = crate::operators::orientation_function(grads, d.values.col_as_slice(a), d.values.col_as_slice(b))?;
+        // Low-pass: Φ Φᵀ A h.
+        let coef: Vec<f64> = (0..ks).map(|c| (0..n).map(|i| phi[(i, c)] * basis.mass[i] * h[i]).sum()).collect();
+        for i in 0..n {
+            values[(i, t)] = (0..ks).map(|c| phi[(i, c)] * coef[c]).sum();
+        }
+        names.push(format!("signed:{a},{b}"));
+    }
+    normalized(&Descriptors::new(values, names)?, &basis.mass)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

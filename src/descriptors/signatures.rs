@@ -127,6 +127,40 @@ pub fn wks(basis: &Basis, count: usize, normalize: bool) -> Result<Descriptors> 
     Descriptors::new(w, energies.iter().map(|e| format!("wks:e={e:.6}")).collect())
 }
 
+/// A WKS recipe: `energies` energies from the first `eigenpairs` eigenpairs, every
+/// `keep_every`-th kept (pyFM's documented pipeline: 100 from 128, every 2nd, i.e. 50). Fewer,
+/// lower-frequency, less correlated functions than WKS from the whole basis, and measurably
+/// better maps from the axiomatic method (EXPERIMENTS.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct WksRecipe {
+    /// Number of energies.
+    pub energies: usize,
+    /// Eigenpairs used (capped at the basis size).
+    pub eigenpairs: usize,
+    /// Keep every n-th energy.
+    pub keep_every: usize,
+}
+
+impl Default for WksRecipe {
+    fn default() -> Self {
+        WksRecipe { energies: 100, eigenpairs: 128, keep_every: 2 }
+    }
+}
+
+/// The WKS of a [`WksRecipe`] (n × ⌈energies / keep_every⌉), scale-normalized as [`wks`].
+pub fn wks_recipe(basis: &Basis, recipe: &WksRecipe) -> Result<Descriptors> {
+    if recipe.keep_every == 0 || recipe.eigenpairs < 2 {
+        return Err(Error::invalid("WKS recipe", "need keep_every ≥ 1 and at least 2 eigenpairs"));
+    }
+    let b = if recipe.eigenpairs < basis.k() { basis.truncate(recipe.eigenpairs)? } else { basis.clone() };
+    let w = wks(&b, recipe.energies, true)?;
+    let keep: Vec<usize> = (0..w.q()).step_by(recipe.keep_every).collect();
+    Descriptors::new(
+        Mat::from_fn(w.n(), keep.len(), |i, j| w.values[(i, keep[j])]),
+        keep.iter().map(|&j| w.names[j].clone()).collect(),
+    )
+}
+
 /// Heat kernel maps k_t(p, ·) for every seed vertex p and time t: n × (seeds · times), seed-major
 /// (column s·T + j is seed s at time j), named `hkm:v=p,t=…`.
 pub fn hkm(basis: &Basis, seeds: &[usize], times: &[f64], normalize: bool) -> Result<Descriptors> {

@@ -2,6 +2,8 @@
 //! a point-to-point map X → Y, refined or not. The CLI's `match`, `demo` and the experiment
 //! programs are thin layers over [`run`].
 
+pub mod axiomatic;
+
 use std::time::Instant;
 
 use faer::{Mat, MatRef};
@@ -19,6 +21,10 @@ use crate::spectral::Basis;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Method {
+    /// The orientation-aware axiomatic pipeline ([`axiomatic`]): descriptor preservation,
+    /// resolvent Laplacian commutativity, descriptor commutativity and orientation, with signed
+    /// descriptors, candidate selection and ZoomOut.
+    Axiomatic,
     /// Ovsjanikov et al. 2012, eq. (5), with optional Laplacian commutativity.
     Fmap,
     /// Pokrass et al. 2013, eq. (6).
@@ -83,6 +89,8 @@ pub struct MatchOptions {
     pub zoomout_to: usize,
     /// Size increment of ZoomOut.
     pub zoomout_step: usize,
+    /// The axiomatic pipeline (method `Axiomatic`; its own refinement replaces `refine`).
+    pub axiomatic: axiomatic::AxiomaticPipeline,
 }
 
 impl Default for MatchOptions {
@@ -103,6 +111,7 @@ impl Default for MatchOptions {
             icp: IcpOptions::default(),
             zoomout_to: 150,
             zoomout_step: 1,
+            axiomatic: axiomatic::AxiomaticPipeline::default(),
         }
     }
 }
@@ -112,6 +121,7 @@ impl MatchOptions {
     pub fn basis_size(&self) -> usize {
         let mut k = match self.method {
             Method::Completion => self.completion.k_prime.max(self.init_k),
+            Method::Axiomatic => return self.axiomatic.basis_size(),
             _ => self.k,
         };
         if self.refine != Refine::None {
@@ -144,6 +154,8 @@ pub struct MatchResult {
     pub solver: serde_json::Value,
     /// (stage, seconds) in order.
     pub stages: Vec<(String, f64)>,
+    /// The axiomatic method's candidates and the index of the chosen one.
+    pub candidates: Option<(Vec<axiomatic::Candidate>, usize)>,
 }
 
 /// Point maps X → Y (length n) and Y → X (length m).
@@ -182,6 +194,9 @@ pub fn run(
     let ovs = OvsjanikovOptions { commutativity: opts.commutativity };
     // The method: a functional map and, for completion, a point map of its own.
     let (c_method, method_maps): (Mat<f64>, Option<MapPair>) = match opts.method {
+        Method::Axiomatic => {
+            return Err(Error::invalid("method", "the axiomatic method needs prepared shapes (run_prepared)"));
+        }
         Method::Fmap => (timed(&mut stages, "functional map", || fmap::ovsjanikov(bx, by, f, g, opts.k, &ovs))?, None),
         Method::Pokrass => {
             (timed(&mut stages, "functional map", || Ok(fmap::pokrass(bx, by, f, g, opts.k, &opts.pokrass)?.0))?, None)
@@ -235,7 +250,39 @@ pub fn run(
         (Some((_, map_yx)), Refine::None) => map_yx.clone(),
         _ => timed(&mut stages, "map Y → X", || pointwise::map_yx_from_fmap(phi, psi, c.as_ref()))?,
     };
-    Ok(MatchResult { map_xy, map_yx, c, c_method, coefficients, factors, solver, stages })
+    Ok(MatchResult { map_xy, map_yx, c, c_method, coefficients, factors, solver, stages, candidates: None })
+}
+
+/// [`run`] on prepared shapes: the axiomatic method, which needs their surfaces, and every other
+/// method through [`run`] with their bases and Laplacians. For the axiomatic method `c` is the
+/// transpose of the pull-back C_yx of `map_xy` (k × k; for a bijective isometry the two agree),
+/// `c_method` the chosen candidate's fit, transposed the same way.
+pub fn run_prepared(
+    x: &crate::prepared::PreparedShape,
+    y: &crate::prepared::PreparedShape,
+    f: &Descriptors,
+    g: &Descriptors,
+    opts: &MatchOptions,
+) -> Result<MatchResult> {
+    if opts.method != Method::Axiomatic {
+        return run(&x.basis, &y.basis, Some((&x.laplacian, &y.laplacian)), f, g, opts);
+    }
+    let r = axiomatic::axiomatic_pipeline(x, y, f, g, &opts.axiomatic)?;
+    let mut stages = r.stages;
+    let c = r.c_yx.transpose().to_owned();
+    let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
+    let map_yx = timed(&mut stages, "map Y → X", || crate::refine::map_of_pullback(psi, phi, c.as_ref(), None))?;
+    Ok(MatchResult {
+        map_xy: r.map_xy,
+        map_yx,
+        c,
+        c_method: r.c_fit.transpose().to_owned(),
+        coefficients: None,
+        factors: None,
+        solver: serde_json::Value::Null,
+        stages,
+        candidates: Some((r.candidates, r.chosen)),
+    })
 }
 
 /// The completion method's point maps X → Y and Y → X by `how`.

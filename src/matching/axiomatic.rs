@@ -1,0 +1,223 @@
+//! The default pipeline: orientation-aware axiomatic functional maps, refined by ZoomOut.
+//!
+//! 1. **Data**: the given descriptors (normalized, [`crate::descriptors::normalized`]) and
+//!    `signed` orientation descriptors built from them ([`crate::descriptors::signed`]), which
+//!    change sign under the left–right symmetry the others cannot see.
+//! 2. **Functional maps**: the exact minimizer of the axiomatic energy
+//!    ([`crate::fmap::axiomatic`]) for the pull-back C_yx of the map X → Y (so that the map is
+//!    read off in the direction ZoomOut refines it), at several sizes k (`candidates`).
+//! 3. **Selection**: every candidate is refined cheaply (ZoomOut to `probe.k_final` on
+//!    `probe.samples` vertices) and the one whose point map has the smallest metric distortion
+//!    ([`crate::refine::metric_distortion`]) is kept: a start that ZoomOut turns into a map with
+//!    a limb matched to the wrong limb or a mirrored part tears at the seams; an isometry does
+//!    not.
+//! 4. **Refinement**: ZoomOut of the chosen map to `refine.k_final` on `refine.samples` vertices
+//!    ([`crate::refine::zoomout`]), then the point map of every vertex.
+//!
+//! Map direction: the result is `map_xy` (for every vertex of X a vertex of Y) and its pull-back
+//! C_yx (k × k, functions on Y → functions on X).
+
+use faer::Mat;
+use serde::{Deserialize, Serialize};
+
+use crate::descriptors::{self, Descriptors};
+use crate::error::{Error, Result};
+use crate::fmap::axiomatic::{axiomatic, AxiomaticOptions, ShapeData};
+use crate::fmap::energy::{EnergyWeights, Orientation};
+use crate::prepared::PreparedShape;
+use crate::refine::{self, Samples, ZoomOutOptions};
+
+/// A ZoomOut schedule on vertex samples.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ZoomOutSchedule {
+    /// Final size K.
+    pub k_final: usize,
+    /// Size increment per iteration.
+    pub step: usize,
+    /// Farthest-point samples of X the intermediate maps are computed on (0: every vertex).
+    pub samples: usize,
+}
+
+/// Options of [`axiomatic_pipeline`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AxiomaticPipeline {
+    /// The energy (its `k` is ignored: see `candidates`).
+    pub fit: AxiomaticOptions,
+    /// Sizes k of the candidate functional maps.
+    pub candidates: Vec<usize>,
+    /// Number of signed descriptors added to the data (0: none).
+    pub signed: usize,
+    /// Eigenfunctions the signed descriptors are low-passed to.
+    pub signed_smoothing: usize,
+    /// The cheap ZoomOut that compares the candidates (unused with one candidate).
+    pub probe: ZoomOutSchedule,
+    /// The final refinement (`k_final` 0: none, the map of the chosen functional map).
+    pub refine: ZoomOutSchedule,
+}
+
+impl Default for AxiomaticPipeline {
+    fn default() -> Self {
+        AxiomaticPipeline {
+            fit: AxiomaticOptions {
+                weights: EnergyWeights { descriptors: 1.0, laplacian: 0.1, commutativity: 1.0, orientation: 3.0 },
+                unit_gradients: true,
+                ..AxiomaticOptions::default()
+            },
+            candidates: vec![20, 30, 40, 50],
+            signed: 10,
+            signed_smoothing: 50,
+            probe: ZoomOutSchedule { k_final: 60, step: 5, samples: 1000 },
+            refine: ZoomOutSchedule { k_final: 110, step: 5, samples: 2000 },
+        }
+    }
+}
+
+impl AxiomaticPipeline {
+    /// The number of eigenpairs each basis must hold.
+    pub fn basis_size(&self) -> usize {
+        let kmax = self.candidates.iter().copied().max().unwrap_or(0);
+        kmax.max(self.probe.k_final).max(self.refine.k_final)
+    }
+}
+
+/// One candidate of [`axiomatic_pipeline`] and how it scored.
+#[derive(Clone, Debug, Serialize)]
+pub struct Candidate {
+    /// Size k of its functional map.
+    pub k: usize,
+    /// Metric distortion of its probe map.
+    pub distortion: f64,
+    /// Orientation agreement of its probe map ([`crate::refine::orientation_agreement`]).
+    pub orientation: f64,
+}
+
+/// What [`axiomatic_pipeline`] returns.
+#[derive(Clone, Debug)]
+pub struct AxiomaticResult {
+    /// The point map X → Y (length n).
+    pub map_xy: Vec<usize>,
+    /// The pull-back functional map of `map_xy` (final size × final size, Y → X).
+    pub c_yx: Mat<f64>,
+    /// The chosen candidate's functional map before refinement (k × k, Y → X).
+    pub c_fit: Mat<f64>,
+    /// Every candidate, in the order of the options.
+    pub candidates: Vec<Candidate>,
+    /// Index of the chosen one.
+    pub chosen: usize,
+    /// (stage, seconds).
+    pub stages: Vec<(String, f64)>,
+}
+
+fn samples_of(s: &PreparedShape, count: usize) -> Result<Samples> {
+    match (s.positions(), count) {
+        (Some(p), c) if c > 0 => refine::farthest_point_samples(p, &s.basis.mass, c),
+        _ => Ok(Samples::all(&s.basis.mass)),
+    }
+}
+
+/// The descriptors the energy sees: F normalized, then the signed ones (negated on Y for
+/// orientation-reversing maps, under which they change sign).
+fn pipeline_data(
+    s: &PreparedShape,
+    f: &Descriptors,
+    p: &AxiomaticPipeline,
+    negate_signed: bool,
+) -> Result<Descriptors> {
+    let base = descriptors::normalized(f, &s.basis.mass)?;
+    if p.signed == 0 || p.fit.orientation == Orientation::Ignore || base.q() < 2 {
+        return Ok(base);
+    }
+    let Some(grads) = s.gradients() else {
+        return Ok(base);
+    };
+    let mut signed = descriptors::signed(&base, grads, &s.basis, p.signed, p.signed_smoothing)?;
+    if negate_signed {
+        signed.values = &signed.values * -1.0;
+    }
+    base.concat(&signed)
+}
+
+/// Runs the default pipeline (module docs) from descriptors F (n × q) on X and G (m × q) on Y.
+/// Errors: no candidate sizes, bases smaller than [`AxiomaticPipeline::basis_size`], and those of
+/// the steps.
+pub fn axiomatic_pipeline(
+    x: &PreparedShape,
+    y: &PreparedShape,
+    f: &Descriptors,
+    g: &Descriptors,
+    p: &AxiomaticPipeline,
+) -> Result<AxiomaticResult> {
+    if p.candidates.is_empty() || p.candidates.contains(&0) {
+        return Err(Error::invalid("candidates", "need at least one functional-map size ≥ 1"));
+    }
+    let need = p.basis_size();
+    if x.basis.k() < need || y.basis.k() < need {
+        return Err(Error::invalid(
+            "bases",
+            format!(
+                "the pipeline needs {need} eigenpairs per shape, the bases hold {} and {}",
+                x.basis.k(),
+                y.basis.k()
+            ),
+        ));
+    }
+    let mut stages = Vec::new();
+    let t = std::time::Instant::now();
+    let reverse = p.fit.orientation == Orientation::Reverse;
+    let (fx, gy) = (pipeline_data(x, f, p, false)?, pipeline_data(y, g, p, reverse)?);
+    let dx = ShapeData { basis: &x.basis, gradients: x.gradients(), descriptors: &fx };
+    let dy = ShapeData { basis: &y.basis, gradients: y.gradients(), descriptors: &gy };
+    stages.push(("descriptors".to_string(), t.elapsed().as_secs_f64()));
+    let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
+    // Candidates: C_yx is the map of the energy from Y's data to X's.
+    let t = std::time::Instant::now();
+    let fits: Vec<Mat<f64>> = p
+        .candidates
+        .iter()
+        .map(|&k| axiomatic(&dy, &dx, &AxiomaticOptions { k, ..p.fit }).map(|r| r.0))
+        .collect::<Result<_>>()?;
+    stages.push(("functional maps".to_string(), t.elapsed().as_secs_f64()));
+    let t = std::time::Instant::now();
+    let probe_samples = samples_of(x, p.probe.samples)?;
+    let scale = (y.basis.mass.iter().sum::<f64>() / x.basis.mass.iter().sum::<f64>()).sqrt();
+    let mut candidates = Vec::with_capacity(fits.len());
+    for (c, &k) in fits.iter().zip(&p.candidates) {
+        let map = if fits.len() == 1 {
+            None
+        } else {
+            let o = ZoomOutOptions { k_final: p.probe.k_final.max(k), step: p.probe.step };
+            Some(refine::zoomout(phi, psi, &probe_samples, c.as_ref(), &o)?.1)
+        };
+        let (distortion, orientation) = match (map, x.triangles(), y.positions(), y.normals()) {
+            (Some(m), Some(tx), Some(py), Some(ny)) => {
+                (refine::metric_distortion(tx, py, scale, &m)?, refine::orientation_agreement(tx, py, ny, &m)?)
+            }
+            _ => (f64::NAN, f64::NAN),
+        };
+        candidates.push(Candidate { k, distortion, orientation });
+    }
+    // The smallest distortion (the first candidate when none could be measured).
+    let chosen = (0..candidates.len())
+        .min_by(|&a, &b| {
+            let (da, db) = (candidates[a].distortion, candidates[b].distortion);
+            match (da.is_nan(), db.is_nan()) {
+                (false, false) => da.total_cmp(&db),
+                (true, false) => std::cmp::Ordering::Greater,
+                (false, true) => std::cmp::Ordering::Less,
+                (true, true) => a.cmp(&b),
+            }
+        })
+        .expect("at least one candidate");
+    stages.push(("candidate selection".to_string(), t.elapsed().as_secs_f64()));
+    let t = std::time::Instant::now();
+    let c_fit = fits[chosen].clone();
+    let (c_yx, map_xy) = if p.refine.k_final > 0 {
+        let samples = samples_of(x, p.refine.samples)?;
+        let o = ZoomOutOptions { k_final: p.refine.k_final.max(c_fit.nrows()), step: p.refine.step };
+        refine::zoomout(phi, psi, &samples, c_fit.as_ref(), &o)?
+    } else {
+        (c_fit.clone(), refine::map_of_pullback(phi, psi, c_fit.as_ref(), None)?)
+    };
+    stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
+    Ok(AxiomaticResult { map_xy, c_yx, c_fit, candidates, chosen, stages })
+}

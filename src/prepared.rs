@@ -1,0 +1,173 @@
+//! A shape ready for matching: the shape, its Laplacian and eigenbasis, and the surface geometry
+//! the orientation-aware steps need (the mesh itself, or a point cloud's local triangulation),
+//! computed once and reused by every pair the shape takes part in.
+
+use std::sync::OnceLock;
+
+use serde::{Deserialize, Serialize};
+
+use crate::cloud::{CloudSurface, DEFAULT_NEIGHBOURS};
+use crate::error::{Error, Result};
+use crate::laplacian::{self, KnnOptions, Laplacian};
+use crate::operators::FaceGradients;
+use crate::shape::{Shape, TriMesh};
+use crate::spectral::{self, Basis, BasisCache, SpectralOptions};
+
+/// Which Laplacian to build.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LaplacianChoice {
+    /// Cotangent for meshes, the point-cloud Laplacian for 3-D point sets, the kNN graph for
+    /// other dimensions.
+    Auto,
+    /// Cotangent weights and barycentric mass (meshes).
+    Cotangent,
+    /// The point-cloud Laplacian of local Delaunay fans over K neighbours (3-D points; a mesh is
+    /// used as its vertices).
+    Cloud {
+        /// Neighbours K.
+        k: usize,
+    },
+    /// The paper's kNN graph (eq. (1)), for any point set.
+    Knn(KnnOptions),
+}
+
+impl Default for LaplacianChoice {
+    fn default() -> Self {
+        LaplacianChoice::Auto
+    }
+}
+
+/// The triangles a shape's orientation-aware steps work on: a mesh's own faces, or the local
+/// triangulation of a point cloud (with its normals).
+#[derive(Debug, Clone)]
+pub enum Surface {
+    /// The mesh.
+    Mesh,
+    /// A point cloud's oriented union of local Delaunay fans.
+    Cloud(CloudSurface),
+}
+
+/// A shape with its Laplacian, its eigenbasis and (on demand) its surface geometry.
+#[derive(Debug)]
+pub struct PreparedShape {
+    /// The shape as loaded.
+    pub shape: Shape,
+    /// Its Laplacian (n × n).
+    pub laplacian: Laplacian,
+    /// Its first k eigenpairs (Φ: n × k, Φᵀ A Φ = I).
+    pub basis: Basis,
+    surface: Option<Surface>,
+    gradients: OnceLock<Option<FaceGradients>>,
+    normals: OnceLock<Option<Vec<[f64; 3]>>>,
+}
+
+impl PreparedShape {
+    /// Builds the Laplacian of `shape` (`choice`), its first `k` eigenpairs (through `cache` when
+    /// given) and, for meshes and 3-D point clouds, the surface. Errors: a Laplacian that does
+    /// not fit the shape (cotangent without faces, a point-cloud Laplacian of non-3-D points),
+    /// and those of the Laplacian and the eigensolver.
+    pub fn new(shape: Shape, choice: LaplacianChoice, k: usize, cache: Option<&BasisCache>) -> Result<Self> {
+        let (laplacian, surface) = build_laplacian(&shape, choice)?;
+        let (basis, _) = spectral::eigen_basis_cached(&laplacian, &SpectralOptions::new(k), cache, None)?;
+        let basis = if basis.k() > k { basis.truncate(k)? } else { basis };
+        Ok(Self::from_parts(shape, laplacian, basis, surface))
+    }
+
+    /// Assembles a prepared shape from parts computed elsewhere (e.g. a basis read from a file).
+    pub fn from_parts(shape: Shape, laplacian: Laplacian, basis: Basis, surface: Option<Surface>) -> Self {
+        PreparedShape { shape, laplacian, basis, surface, gradients: OnceLock::new(), normals: OnceLock::new() }
+    }
+
+    /// Number of vertices n.
+    pub fn n(&self) -> usize {
+        self.shape.n_vertices()
+    }
+
+    /// The triangles of the surface: the mesh, or the point cloud's soup (None for abstract data
+    /// or a kNN-graph Laplacian of a cloud).
+    pub fn triangles(&self) -> Option<&TriMesh> {
+        match (&self.surface, &self.shape) {
+            (Some(Surface::Mesh), Shape::Mesh(m)) => Some(m),
+            (Some(Surface::Cloud(c)), _) => Some(&c.soup),
+            _ => None,
+        }
+    }
+
+    /// Vertex positions (n × 3) of meshes and 3-D point clouds.
+    pub fn positions(&self) -> Option<&[[f64; 3]]> {
+        self.triangles().map(|t| t.vertices())
+    }
+
+    /// Face gradients of the surface (computed on first use): the mesh's, or the cloud soup's
+    /// with face weight ⅓ (it covers the surface three times).
+    pub fn gradients(&self) -> Option<&FaceGradients> {
+        self.gradients
+            .get_or_init(|| {
+                let w = match &self.surface {
+                    Some(Surface::Cloud(_)) => 1.0 / 3.0,
+                    _ => 1.0,
+                };
+                self.triangles().and_then(|t| FaceGradients::weighted(t, w).ok())
+            })
+            .as_ref()
+    }
+
+    /// Outward unit vertex normals (computed on first use): area-weighted for meshes, the
+    /// oriented PCA normals for clouds.
+    pub fn normals(&self) -> Option<&[[f64; 3]]> {
+        self.normals
+            .get_or_init(|| match (&self.surface, &self.shape) {
+                (Some(Surface::Mesh), Shape::Mesh(m)) => Some(m.vertex_normals()),
+                (Some(Surface::Cloud(c)), _) => Some(c.normals.clone()),
+                _ => None,
+            })
+            .as_deref()
+    }
+}
+
+/// The Laplacian of a shape for `choice`, and its surface when it has one.
+pub fn build_laplacian(shape: &Shape, choice: LaplacianChoice) -> Result<(Laplacian, Option<Surface>)> {
+    let cloud = |pts: &[[f64; 3]], k: usize| -> Result<(Laplacian, Option<Surface>)> {
+        let (lap, surface) = laplacian::point_cloud(pts, k)?;
+        Ok((lap, Some(Surface::Cloud(surface))))
+    };
+    let points3 = |shape: &Shape| -> Option<Vec<[f64; 3]>> {
+        match shape {
+            Shape::Mesh(m) => Some(m.vertices().to_vec()),
+            Shape::Points(p) if p.dim() == 3 => {
+                Some((0..p.len()).map(|i| [p.point(i)[0], p.point(i)[1], p.point(i)[2]]).collect())
+            }
+            Shape::Points(_) => None,
+        }
+    };
+    match (choice, shape) {
+        (LaplacianChoice::Auto | LaplacianChoice::Cotangent, Shape::Mesh(m)) => {
+            Ok((laplacian::cotangent(m)?, Some(Surface::Mesh)))
+        }
+        (LaplacianChoice::Cotangent, Shape::Points(_)) => Err(Error::invalid(
+            "laplacian",
+            "cotangent weights need a triangle mesh; this shape has no faces (use the point-cloud Laplacian)",
+        )),
+        (LaplacianChoice::Auto, Shape::Points(p)) if p.dim() != 3 => {
+            Ok((laplacian::knn_graph(p, &KnnOptions::default())?, None))
+        }
+        (LaplacianChoice::Auto, s) => {
+            // Small clouds: as many neighbours as there are other points.
+            let pts = points3(s).expect("3-D points");
+            let k = DEFAULT_NEIGHBOURS.min(pts.len().saturating_sub(1));
+            cloud(&pts, k)
+        }
+        (LaplacianChoice::Cloud { k }, s) => match points3(s) {
+            Some(pts) => cloud(&pts, k),
+            None => Err(Error::invalid(
+                "laplacian",
+                format!(
+                    "the point-cloud Laplacian needs 3-D points; this shape has dimension {}",
+                    s.to_point_set().dim()
+                ),
+            )),
+        },
+        (LaplacianChoice::Knn(o), s) => Ok((laplacian::knn_graph(&s.to_point_set(), &o)?, None)),
+    }
+}

@@ -1,0 +1,619 @@
+//! Point-wise refinement of functional maps: ZoomOut (Melzi et al. 2019) on vertex samples, its
+//! bijective two-direction variant (the discrete solver of Ren, Melzi, Wonka, Ovsjanikov 2021
+//! with bijectivity and coupling terms), and an orientation check of point maps.
+//!
+//! **Conventions.** A point map π: X → Y is `map_xy` (length n, for every vertex of X a vertex of
+//! Y). Its pull-back functional map `C_yx = Φᵀ A_X Π Ψ` (k_X × k_Y) takes the coefficients of a
+//! function g on Y (in Ψ, m × k_Y) to those of g ∘ π on X (in Φ, n × k_X) — pyFM's `FM_12` with
+//! mesh1 = Y, and the transpose direction of the C of [`crate::fmap`]. Conversely, from C_yx the
+//! point map is read off by nearest neighbours ([`map_of_pullback`]). Estimating the map X → Y through
+//! its own pull-back (rather than through the push-forward C of the opposite direction) is the
+//! direction ZoomOut's analysis is for, and measurably better (EXPERIMENTS.md).
+//!
+//! **Samples.** ZoomOut's functional maps only need the point map on a few thousand vertices
+//! (Melzi et al. §4.4): on a sample S of X with weights w (the area of each sample's Voronoi
+//! cell), C_yx is the weighted least-squares solution of Φ_S C ≈ Ψ_π(S). With every vertex and
+//! w = A_X this is exactly Φᵀ A_X Π Ψ.
+
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, MatRef, Par, Side};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::pointwise::nearest_neighbors;
+use crate::shape::TriMesh;
+
+/// A weighted subset of the vertices of a shape.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Samples {
+    /// Vertex ids (distinct).
+    pub vertices: Vec<usize>,
+    /// Weight of every sample (> 0): the vertex weight it stands for (units²).
+    pub weights: Vec<f64>,
+}
+
+impl Samples {
+    /// Every vertex, weighted by its mass (length n).
+    pub fn all(mass: &[f64]) -> Samples {
+        Samples { vertices: (0..mass.len()).collect(), weights: mass.to_vec() }
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.vertices.len()
+    }
+
+    /// Whether there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.vertices.is_empty()
+    }
+}
+
+/// `count` farthest-point samples of the points (n × 3, Euclidean, deterministic: the first
+/// sample is the point farthest from the centroid), each weighted by the total mass of the
+/// points nearest to it (its Voronoi cell). All points when count ≥ n.
+pub fn farthest_point_samples(points: &[[f64; 3]], mass: &[f64], count: usize) -> Result<Samples> {
+    let n = points.len();
+    if mass.len() != n || n == 0 {
+        return Err(Error::invalid("samples", format!("{n} points and {} weights", mass.len())));
+    }
+    if count == 0 {
+        return Err(Error::invalid("samples", "need at least one sample"));
+    }
+    if count >= n {
+        return Ok(Samples::all(mass));
+    }
+    let d2 = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|c| (a[c] - b[c]).powi(2)).sum::<f64>();
+    let mut centroid = [0.0; 3];
+    for p in points {
+        for c in 0..3 {
+            centroid[c] += p[c] / n as f64;
+        }
+    }
+    let mut next =
+        (0..n).max_by(|&a, &b| d2(&points[a], &centroid).total_cmp(&d2(&points[b], &centroid))).expect("n > 0");
+    let mut best = vec![f64::INFINITY; n];
+    let mut owner = vec![0usize; n];
+    let mut chosen = Vec::with_capacity(count);
+    while chosen.len() < count {
+        let s = chosen.len();
+        chosen.push(next);
+        let c = points[next];
+        let mut far = (0usize, -1.0f64);
+        for (i, p) in points.iter().enumerate() {
+            let d = d2(p, &c);
+            if d < best[i] {
+                best[i] = d;
+                owner[i] = s;
+            }
+            if best[i] > far.1 {
+                far = (i, best[i]);
+            }
+        }
+        if far.1 <= 0.0 {
+            break;
+        }
+        next = far.0;
+    }
+    let mut weights = vec![0.0; chosen.len()];
+    for i in 0..n {
+        weights[owner[i]] += mass[i];
+    }
+    Ok(Samples { vertices: chosen, weights })
+}
+
+fn mul(a: MatRef<f64>, b: MatRef<f64>) -> Mat<f64> {
+    let mut out = Mat::<f64>::zeros(a.nrows(), b.ncols());
+    matmul(out.as_mut(), Accum::Replace, a, b, 1.0, Par::Seq);
+    out
+}
+
+/// The pull-back functional map C_yx (k_X × k_Y) of a point map given on the samples of X:
+/// the weighted least-squares solution of Φ_S C ≈ Ψ_{π(S)} (Φ: n × ≥k_X, Ψ: m × ≥k_Y,
+/// `map_on_samples[s]` the vertex of Y of sample s). With all vertices and their masses this is
+/// Φᵀ A_X Π Ψ.
+pub fn pullback(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    samples: &Samples,
+    map_on_samples: &[usize],
+    kx: usize,
+    ky: usize,
+) -> Result<Mat<f64>> {
+    let (n, m) = (phi.nrows(), psi.nrows());
+    if map_on_samples.len() != samples.len() {
+        return Err(Error::invalid("map", format!("{} entries for {} samples", map_on_samples.len(), samples.len())));
+    }
+    if kx == 0 || ky == 0 || kx > phi.ncols() || ky > psi.ncols() {
+        return Err(Error::invalid("k", format!("need 1 ≤ k_X ≤ {}, 1 ≤ k_Y ≤ {}", phi.ncols(), psi.ncols())));
+    }
+    if samples.vertices.iter().any(|&v| v >= n) || map_on_samples.iter().any(|&j| j >= m) {
+        return Err(Error::invalid("map", "a vertex id is out of range"));
+    }
+    let ns = samples.len();
+    let wphi = Mat::from_fn(ns, kx, |s, a| samples.weights[s] * phi[(samples.vertices[s], a)]);
+    let psi_pi = Mat::from_fn(ns, ky, |s, b| psi[(map_on_samples[s], b)]);
+    let rhs = mul(wphi.transpose(), psi_pi.as_ref());
+    let phi_s = Mat::from_fn(ns, kx, |s, a| phi[(samples.vertices[s], a)]);
+    let gram = mul(wphi.transpose(), phi_s.as_ref());
+    let llt = gram.llt(Side::Lower).map_err(|_| {
+        Error::numerical(
+            "pullback",
+            format!("the {kx} basis functions are not independent on {ns} samples; use more samples"),
+        )
+    })?;
+    use faer::linalg::solvers::Solve;
+    Ok(llt.solve(&rhs))
+}
+
+/// The point map X → Y of a pull-back functional map C_yx (k_X × k_Y): for every query vertex i
+/// of X (`rows`, or all), the vertex j of Y whose row of Ψ_{k_Y} C_yxᵀ is nearest to row i of
+/// Φ_{k_X}. This minimizes ‖Φ − Π Ψ C_yxᵀ‖_F over point maps Π row by row: the update of
+/// ZoomOut's orthogonality energy (Ren et al. 2021), and pyFM's default conversion. (The
+/// "adjoint" alternative, rows of Ψ against rows of Φ C_yx, agrees for orthonormal C but is far
+/// worse from the non-orthonormal maps of the energy: 23.1 against 6.3 mean error on 20 faust_r
+/// pairs.)
+pub fn map_of_pullback(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    c_yx: MatRef<f64>,
+    rows: Option<&[usize]>,
+) -> Result<Vec<usize>> {
+    map_of_pullback_with(phi, psi, c_yx, None, rows)
+}
+
+/// Pointwise descriptors that the point map should also preserve: F (n × d) on X and G (m × d) on
+/// Y, already weighted (their columns enter the nearest-neighbour embeddings as they are).
+#[derive(Clone, Copy)]
+pub struct DescriptorBlock<'a> {
+    /// F (n × d).
+    pub x: MatRef<'a, f64>,
+    /// G (m × d).
+    pub y: MatRef<'a, f64>,
+}
+
+/// [`map_of_pullback`] with a descriptor block: π(i) minimizes
+/// ‖Φ_i − (Ψ C_yxᵀ)_j‖² + ‖F_i − G_j‖² (the descriptor term of Ren et al. 2021's discrete
+/// solver: ‖Π G − F‖² separates over the rows of Π).
+pub fn map_of_pullback_with(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    c_yx: MatRef<f64>,
+    block: Option<DescriptorBlock>,
+    rows: Option<&[usize]>,
+) -> Result<Vec<usize>> {
+    let (kx, ky) = (c_yx.nrows(), c_yx.ncols());
+    if kx == 0 || ky == 0 || kx > phi.ncols() || ky > psi.ncols() {
+        return Err(Error::invalid(
+            "C",
+            format!("a {kx}×{ky} map does not fit bases with {} and {} columns", phi.ncols(), psi.ncols()),
+        ));
+    }
+    if let Some(r) = rows {
+        if r.iter().any(|&i| i >= phi.nrows()) {
+            return Err(Error::invalid("rows", "a vertex id is out of range"));
+        }
+    }
+    let d = match block {
+        Some(b) => {
+            if b.x.nrows() != phi.nrows() || b.y.nrows() != psi.nrows() || b.x.ncols() != b.y.ncols() {
+                return Err(Error::invalid(
+                    "descriptor block",
+                    format!("{}×{} on X and {}×{} on Y", b.x.nrows(), b.x.ncols(), b.y.nrows(), b.y.ncols()),
+                ));
+            }
+            b.x.ncols()
+        }
+        None => 0,
+    };
+    let psi_c = mul(psi.subcols(0, ky), c_yx.transpose());
+    let reference = Mat::from_fn(psi.nrows(), kx + d, |j, a| match block {
+        Some(b) if a >= kx => b.y[(j, a - kx)],
+        _ => psi_c[(j, a)],
+    });
+    let query_row = |i: usize, a: usize| match block {
+        Some(b) if a >= kx => b.x[(i, a - kx)],
+        _ => phi[(i, a)],
+    };
+    let query = match rows {
+        Some(r) => Mat::from_fn(r.len(), kx + d, |s, a| query_row(r[s], a)),
+        None => Mat::from_fn(phi.nrows(), kx + d, query_row),
+    };
+    nearest_neighbors(reference.as_ref(), query.as_ref())
+}
+
+/// Options of [`zoomout`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ZoomOutOptions {
+    /// Final size K of the functional map (K × K).
+    pub k_final: usize,
+    /// Size increment per iteration.
+    pub step: usize,
+}
+
+/// ZoomOut (Melzi et al. 2019) in the pull-back direction, on samples of X: from C_yx (k × k),
+/// alternate the point map on the samples (nearest rows of Ψ_k for the rows of Φ_k C_yx) and
+/// the pull-back map of the next size k + step, up to K; then the point map of every vertex of
+/// X from the final K × K map. Returns (C_yx, map_xy).
+pub fn zoomout(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    samples: &Samples,
+    c0: MatRef<f64>,
+    opts: &ZoomOutOptions,
+) -> Result<(Mat<f64>, Vec<usize>)> {
+    zoomout_with(phi, psi, samples, c0, None, opts)
+}
+
+/// [`zoomout`] whose point maps also match a descriptor block ([`map_of_pullback_with`]).
+pub fn zoomout_with(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    samples: &Samples,
+    c0: MatRef<f64>,
+    block: Option<DescriptorBlock>,
+    opts: &ZoomOutOptions,
+) -> Result<(Mat<f64>, Vec<usize>)> {
+    let k0 = c0.nrows();
+    let kf = opts.k_final;
+    if c0.ncols() != k0 || k0 == 0 || kf < k0 || kf > phi.ncols() || kf > psi.ncols() || opts.step == 0 {
+        return Err(Error::invalid(
+            "zoomout",
+            format!(
+                "need a square start C (got {}×{}), its size ≤ K ≤ the basis sizes ({}, {}) and step ≥ 1; got K = {kf}, step {}",
+                c0.nrows(),
+                c0.ncols(),
+                phi.ncols(),
+                psi.ncols(),
+                opts.step
+            ),
+        ));
+    }
+    let mut c = c0.to_owned();
+    let mut k = k0;
+    while k < kf {
+        let map = map_of_pullback_with(phi, psi, c.as_ref(), block, Some(&samples.vertices))?;
+        k = (k + opts.step).min(kf);
+        c = pullback(phi, psi, samples, &map, k, k)?;
+    }
+    let map = map_of_pullback_with(phi, psi, c.as_ref(), block, None)?;
+    Ok((c, map))
+}
+
+/// Options of [`bijective_zoomout`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BijectiveOptions {
+    /// Final size K of the functional maps.
+    pub k_final: usize,
+    /// Size increment per iteration.
+    pub step: usize,
+    /// Weight of the bijectivity term relative to the coupling terms (Ren et al. 2021 use 1).
+    pub bijectivity: f64,
+}
+
+/// Weighted Gram matrix Σ_s w_s a_s a_sᵀ and cross term Σ_s w_s a_s b_sᵀ of the rows of a and b
+/// at the given rows (k_a × k_a and k_a × k_b).
+fn weighted_products(
+    a: MatRef<f64>,
+    a_rows: &[usize],
+    b: MatRef<f64>,
+    b_rows: &[usize],
+    w: &[f64],
+    ka: usize,
+    kb: usize,
+) -> (Mat<f64>, Mat<f64>) {
+    let ns = w.len();
+    let wa = Mat::from_fn(ns, ka, |s, c| w[s] * a[(a_rows[s], c)]);
+    let aa = Mat::from_fn(ns, ka, |s, c| a[(a_rows[s], c)]);
+    let bb = Mat::from_fn(ns, kb, |s, c| b[(b_rows[s], c)]);
+    (mul(wa.transpose(), aa.as_ref()), mul(wa.transpose(), bb.as_ref()))
+}
+
+/// The functional-map step of the bijective refinement: C_yx (k × k) minimizing
+/// ‖Φ C − Π_xy Ψ‖²_{W_X} + w ‖Π_yx Φ C − Ψ‖²_{W_Y} on the samples of both shapes (W the sample
+/// weights): C pulls Y's functions back along π_xy and is inverted by π_yx.
+fn bijective_fmap(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    sx: &Samples,
+    map_xy: &[usize],
+    sy: &Samples,
+    map_yx: &[usize],
+    k: usize,
+    w: f64,
+) -> Result<Mat<f64>> {
+    let (g1, r1) = weighted_products(phi, &sx.vertices, psi, map_xy, &sx.weights, k, k);
+    let (g2, r2) = weighted_products(phi, map_yx, psi, &sy.vertices, &sy.weights, k, k);
+    let gram = &g1 + &g2 * w;
+    let rhs = &r1 + &r2 * w;
+    let llt = gram.llt(Side::Lower).map_err(|_| {
+        Error::numerical("bijective refinement", format!("the {k} basis functions are not independent on the samples"))
+    })?;
+    use faer::linalg::solvers::Solve;
+    Ok(llt.solve(&rhs))
+}
+
+/// The point map X → Y of the bijective refinement on the query rows of X: π(i) minimizes
+/// ‖Φ_i − (Ψ C_yxᵀ)_j‖² + ‖(Φ C_yx)_i − Ψ_j‖² + w ‖Φ_i − (Ψ C_xy)_j‖² (orthogonality, coupling
+/// and bijectivity terms; each separates over the rows of Π).
+fn bijective_map(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    c_yx: MatRef<f64>,
+    c_xy: MatRef<f64>,
+    w: f64,
+    rows: Option<&[usize]>,
+) -> Result<Vec<usize>> {
+    let k = c_yx.nrows();
+    let (phi, psi) = (phi.subcols(0, k), psi.subcols(0, k));
+    let sw = w.sqrt();
+    let (psi_ct, phi_c, psi_b) = (mul(psi, c_yx.transpose()), mul(phi, c_yx), mul(psi, c_xy));
+    let reference = Mat::from_fn(psi.nrows(), 3 * k, |j, a| match a / k {
+        0 => psi_ct[(j, a)],
+        1 => psi[(j, a - k)],
+        _ => sw * psi_b[(j, a - 2 * k)],
+    });
+    let all: Vec<usize>;
+    let r = match rows {
+        Some(r) => r,
+        None => {
+            all = (0..phi.nrows()).collect();
+            &all
+        }
+    };
+    let query = Mat::from_fn(r.len(), 3 * k, |s, a| match a / k {
+        0 => phi[(r[s], a)],
+        1 => phi_c[(r[s], a - k)],
+        _ => sw * phi[(r[s], a - 2 * k)],
+    });
+    nearest_neighbors(reference.as_ref(), query.as_ref())
+}
+
+/// Bijective ZoomOut: the discrete solver of Ren, Melzi, Wonka, Ovsjanikov 2021 with its
+/// coupling and bijectivity terms (as in the bijective ZoomOut of Magnet et al.'s
+/// SmoothFunctionalMaps): both point maps π_xy, π_yx and both pull-backs C_yx, C_xy are refined
+/// together while the size grows from that of the start maps to K; each point map uses both
+/// functional maps ([`bijective_map`]), each functional map both point maps. `c_yx0`, `c_xy0` are
+/// k × k starts (C_xy ≈ C_yxᵀ for near-isometries). Returns (C_yx, map_xy on every vertex of X,
+/// map_yx on every vertex of Y).
+pub fn bijective_zoomout(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    sx: &Samples,
+    sy: &Samples,
+    c_yx0: MatRef<f64>,
+    c_xy0: MatRef<f64>,
+    opts: &BijectiveOptions,
+) -> Result<(Mat<f64>, Vec<usize>, Vec<usize>)> {
+    let k0 = c_yx0.nrows();
+    let kf = opts.k_final;
+    if c_yx0.ncols() != k0
+        || c_xy0.nrows() != k0
+        || c_xy0.ncols() != k0
+        || kf < k0
+        || kf > phi.ncols()
+        || kf > psi.ncols()
+        || opts.step == 0
+    {
+        return Err(Error::invalid(
+            "bijective zoomout",
+            format!("need square k × k starts, k ≤ K ≤ basis sizes and step ≥ 1 (K = {kf}, step {})", opts.step),
+        ));
+    }
+    if !(opts.bijectivity.is_finite() && opts.bijectivity >= 0.0) {
+        return Err(Error::invalid("bijectivity", format!("must be finite and ≥ 0, got {}", opts.bijectivity)));
+    }
+    let w = opts.bijectivity;
+    let (mut c_yx, mut c_xy) = (c_yx0.to_owned(), c_xy0.to_owned());
+    let mut k = k0;
+    while k < kf {
+        let map_xy = bijective_map(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, Some(&sx.vertices))?;
+        let map_yx = bijective_map(psi, phi, c_xy.as_ref(), c_yx.as_ref(), w, Some(&sy.vertices))?;
+        k = (k + opts.step).min(kf);
+        c_yx = bijective_fmap(phi, psi, sx, &map_xy, sy, &map_yx, k, w)?;
+        c_xy = bijective_fmap(psi, phi, sy, &map_yx, sx, &map_xy, k, w)?;
+    }
+    let map_xy = bijective_map(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, None)?;
+    let map_yx = bijective_map(psi, phi, c_xy.as_ref(), c_yx.as_ref(), w, None)?;
+    Ok((c_yx, map_xy, map_yx))
+}
+
+/// Orientation agreement of a point map X → Y, in [−1, 1]: the area-weighted mean over the
+/// triangles of X of the sign of ⟨n', N⟩, n' the normal of the image triangle (π(a), π(b), π(c))
+/// and N the sum of Y's vertex normals at its corners (0 for a degenerate image). Near +1 for an
+/// orientation-preserving map, near −1 for a mirrored one; a map mirrored on part of the shape
+/// scores in between. `y_normals` are Y's unit vertex normals (length m).
+pub fn orientation_agreement(
+    x: &TriMesh,
+    y_vertices: &[[f64; 3]],
+    y_normals: &[[f64; 3]],
+    map_xy: &[usize],
+) -> Result<f64> {
+    let (n, m) = (x.n_vertices(), y_vertices.len());
+    if map_xy.len() != n || y_normals.len() != m {
+        return Err(Error::invalid(
+            "map",
+            format!(
+                "{} entries for {n} vertices of X; {} normals for {m} vertices of Y",
+                map_xy.len(),
+                y_normals.len()
+            ),
+        ));
+    }
+    if map_xy.iter().any(|&j| j >= m) {
+        return Err(Error::invalid("map", format!("it points to a vertex ≥ m = {m}")));
+    }
+    let areas = x.face_areas();
+    let (mut sum, mut total) = (0.0, 0.0);
+    for (f, tri) in x.faces().iter().enumerate() {
+        let [a, b, c] = tri.map(|v| map_xy[v as usize]);
+        total += areas[f];
+        if a == b || b == c || a == c {
+            continue;
+        }
+        let (pa, pb, pc) = (y_vertices[a], y_vertices[b], y_vertices[c]);
+        let u = [pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]];
+        let v = [pc[0] - pa[0], pc[1] - pa[1], pc[2] - pa[2]];
+        let nrm = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+        let nsum: [f64; 3] = std::array::from_fn(|d| y_normals[a][d] + y_normals[b][d] + y_normals[c][d]);
+        let dot = nrm[0] * nsum[0] + nrm[1] * nsum[1] + nrm[2] * nsum[2];
+        if dot > 0.0 {
+            sum += areas[f];
+        } else if dot < 0.0 {
+            sum -= areas[f];
+        }
+    }
+    Ok(if total > 0.0 { sum / total } else { 0.0 })
+}
+
+/// Metric distortion of a point map X → Y on the edges of X's surface (mesh or point-cloud
+/// triangulation): Σ_edges |‖y_π(i) − y_π(j)‖ − s ‖x_i − x_j‖| / Σ_edges s ‖x_i − x_j‖, with
+/// s = √(area_Y / area_X) the scale between the shapes (`scale`). 0 for an isometry at the
+/// resolution of the edges; a map that tears (neighbours sent far apart, as where a limb is
+/// matched to the wrong one) or collapses (neighbours sent to one vertex) scores higher. The
+/// chord lengths stand in for geodesic ones, exact enough at edge scale.
+pub fn metric_distortion(x: &TriMesh, y_positions: &[[f64; 3]], scale: f64, map_xy: &[usize]) -> Result<f64> {
+    let (n, m) = (x.n_vertices(), y_positions.len());
+    if map_xy.len() != n || map_xy.iter().any(|&j| j >= m) {
+        return Err(Error::invalid("map", format!("need {n} entries < m = {m}")));
+    }
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(Error::invalid("scale", format!("must be finite and > 0, got {scale}")));
+    }
+    let xv = x.vertices();
+    let dist =
+        |a: [f64; 3], b: [f64; 3]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+    let (mut num, mut den) = (0.0, 0.0);
+    for e in x.edges() {
+        let (i, j) = (e[0] as usize, e[1] as usize);
+        let dx = scale * dist(xv[i], xv[j]);
+        num += (dist(y_positions[map_xy[i]], y_positions[map_xy[j]]) - dx).abs();
+        den += dx;
+    }
+    Ok(if den > 0.0 { num / den } else { 0.0 })
+}
+
+/// Per-vertex orientation of a point map X → Y, in [−1, 1] (length n): at every vertex of X the
+/// area-weighted mean over its triangles of the sign of [`orientation_agreement`]'s test (+1
+/// where the map preserves orientation, −1 where it mirrors, 0 where the images degenerate).
+pub fn vertex_orientation(
+    x: &TriMesh,
+    y_vertices: &[[f64; 3]],
+    y_normals: &[[f64; 3]],
+    map_xy: &[usize],
+) -> Result<Vec<f64>> {
+    let (n, m) = (x.n_vertices(), y_vertices.len());
+    if map_xy.len() != n || y_normals.len() != m || map_xy.iter().any(|&j| j >= m) {
+        return Err(Error::invalid("map", format!("need {n} entries < m = {m} and {m} normals")));
+    }
+    let areas = x.face_areas();
+    let mut num = vec![0.0; n];
+    let mut den = vec![0.0; n];
+    for (f, tri) in x.faces().iter().enumerate() {
+        let [a, b, c] = tri.map(|v| map_xy[v as usize]);
+        let sign = if a == b || b == c || a == c {
+            0.0
+        } else {
+            let (pa, pb, pc) = (y_vertices[a], y_vertices[b], y_vertices[c]);
+            let u = [pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]];
+            let v = [pc[0] - pa[0], pc[1] - pa[1], pc[2] - pa[2]];
+            let nrm = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+            let d: f64 = (0..3).map(|k| nrm[k] * (y_normals[a][k] + y_normals[b][k] + y_normals[c][k])).sum();
+            d.signum() * f64::from(u8::from(d != 0.0))
+        };
+        for &i in tri {
+            num[i as usize] += areas[f] * sign;
+            den[i as usize] += areas[f];
+        }
+    }
+    Ok(num.iter().zip(&den).map(|(a, b)| if *b > 0.0 { a / b } else { 0.0 }).collect())
+}
+
+/// A function on X low-passed to its first k eigenfunctions: Φ_k Φ_kᵀ A v (length n).
+pub fn low_pass(phi: MatRef<f64>, mass: &[f64], v: &[f64], k: usize) -> Vec<f64> {
+    let k = k.min(phi.ncols());
+    let n = phi.nrows();
+    let coef: Vec<f64> = (0..k).map(|c| (0..n).map(|i| phi[(i, c)] * mass[i] * v[i]).sum()).collect();
+    (0..n).map(|i| (0..k).map(|c| phi[(i, c)] * coef[c]).sum()).collect()
+}
+
+/// Repairs the mirrored parts of a point map X → Y with the intrinsic symmetry s_Y of Y
+/// (`sym_y`, length m, an orientation-reversing involution): where the map mirrors
+/// (`orientation[i] < 0`, e.g. the low-passed [`vertex_orientation`]), π(i) = s_Y(π_true(i)), so
+/// π_true(i) = s_Y(π(i)). Returns the repaired map and the number of vertices changed.
+pub fn repair_mirrored(map_xy: &[usize], orientation: &[f64], sym_y: &[usize]) -> Result<(Vec<usize>, usize)> {
+    if orientation.len() != map_xy.len()
+        || map_xy.iter().any(|&j| j >= sym_y.len())
+        || sym_y.iter().any(|&j| j >= sym_y.len())
+    {
+        return Err(Error::invalid("repair", "map, orientation and symmetry sizes do not agree"));
+    }
+    let mut changed = 0;
+    let out = map_xy
+        .iter()
+        .zip(orientation)
+        .map(|(&j, &o)| {
+            if o < 0.0 {
+                changed += 1;
+                sym_y[j]
+            } else {
+                j
+            }
+        })
+        .collect();
+    Ok((out, changed))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::laplacian::cotangent;
+    use crate::primitives::bumpy_sphere;
+    use crate::spectral::{eigen_basis, SpectralOptions};
+
+    #[test]
+    fn zoomout_recovers_a_permutation_from_a_coarse_start_on_samples() {
+        let x = bumpy_sphere(3);
+        let n = x.n_vertices();
+        let perm: Vec<usize> = (0..n).map(|i| (i * 101 + 7) % n).collect(); // vertex i of X is vertex perm[i] of Y
+        let mut inv = vec![0; n];
+        for (i, &p) in perm.iter().enumerate() {
+            inv[p] = i;
+        }
+        let y = x.permuted(&inv).unwrap();
+        assert_eq!(y.vertices()[perm[17]], x.vertices()[17]);
+        let basis = |m: &TriMesh| eigen_basis(&cotangent(m).unwrap(), &SpectralOptions::new(40), None).unwrap().0;
+        let (bx, by) = (basis(&x), basis(&y));
+        let (phi, psi) = (bx.eigenvectors.as_ref(), by.eigenvectors.as_ref());
+        let full = pullback(phi, psi, &Samples::all(&bx.mass), &perm, 40, 40).unwrap();
+        let c0 = full.submatrix(0, 0, 4, 4).to_owned();
+        let samples = farthest_point_samples(x.vertices(), &bx.mass, 300).unwrap();
+        assert_eq!(samples.len(), 300);
+        let total: f64 = samples.weights.iter().sum();
+        assert!((total - bx.mass.iter().sum::<f64>()).abs() < 1e-12);
+        let (c, map) = zoomout(phi, psi, &samples, c0.as_ref(), &ZoomOutOptions { k_final: 40, step: 3 }).unwrap();
+        assert_eq!(c.nrows(), 40);
+        assert_eq!(map, perm, "ZoomOut on samples must recover the permutation");
+        // The identity permutation is orientation-preserving; the same map read on a mirrored
+        // copy of Y is orientation-reversing.
+        let normals = y.vertex_normals();
+        let s = orientation_agreement(&x, y.vertices(), &normals, &map).unwrap();
+        assert!(s > 0.99, "agreement {s}");
+        let ym: Vec<[f64; 3]> = y.vertices().iter().map(|p| [-p[0], p[1], p[2]]).collect();
+        let nm: Vec<[f64; 3]> = normals.iter().map(|p| [-p[0], p[1], p[2]]).collect();
+        let s = orientation_agreement(&x, &ym, &nm, &map).unwrap();
+        assert!(s < -0.99, "mirrored agreement {s}");
+    }
+
+    #[test]
+    fn pullback_of_all_vertices_is_the_mass_projection() {
+        let x = bumpy_sphere(2);
+        let b = eigen_basis(&cotangent(&x).unwrap(), &SpectralOptions::new(10), None).unwrap().0;
+        let phi = b.eigenvectors.as_ref();
+        let id: Vec<usize> = (0..x.n_vertices()).collect();
+        let c = pullback(phi, phi, &Samples::all(&b.mass), &id, 10, 10).unwrap();
+        assert!((&c - Mat::<f64>::identity(10, 10)).norm_max() < 1e-10);
+        assert!(pullback(phi, phi, &Samples::all(&b.mass), &id[1..], 10, 10).is_err());
+        assert!(farthest_point_samples(x.vertices(), &b.mass, 0).is_err());
+    }
+}
