@@ -486,7 +486,7 @@ enum GeodesicsChoice {
     /// stopped at its predicted point: fast for good maps, up to a full solve per badly mapped
     /// point for poor ones (≈ 0.05 s each on 5,000 vertices, ≈ 1 s on 28,000).
     Exact,
-    /// The heat method (approximate, ~1–3% mean relative error).
+    /// The heat method (approximate, ~2–4% mean relative error).
     Heat,
     /// Dijkstra on the mesh edges (upper bound, ~5% mean relative error).
     Dijkstra,

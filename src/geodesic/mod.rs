@@ -32,7 +32,7 @@
 //! 31.7 %), heat method 1.6 % / 14.7 % (1.6 % / 12.5 %); before the heat method ran on the
 //! intrinsic Delaunay triangulation it was 26 % / 100 % there. Over every shape of the benchmark
 //! data (`examples/heat_accuracy.rs`, BENCHMARKS.md) the heat method's mean relative error is
-//! 1.4–4.3 % per shape.
+//! 1.6–3.9 % per shape (it was 8–50 % on the TOSCA shapes before).
 //!
 //! Dijkstra always overestimates (paths zig-zag along edges); the heat method is smooth but
 //! biased, with its largest errors near the source. On the unit icosphere with 10,242 vertices
@@ -82,7 +82,7 @@ impl GeodesicMethod {
     pub fn description(self) -> &'static str {
         match self {
             GeodesicMethod::Exact => "exact polyhedral (MMP window propagation)",
-            GeodesicMethod::Heat => "heat method (approximate, ~1–3% mean relative error)",
+            GeodesicMethod::Heat => "heat method (approximate, ~2–4% mean relative error)",
             GeodesicMethod::Dijkstra => "Dijkstra on mesh edges (upper bound, ~5% mean relative error)",
         }
     }
