@@ -548,7 +548,8 @@ struct RegionArgs {
 enum SegFunction {
     /// Scale-normalized heat kernel signature at t = --hks-time / λ₁ (maxima at protrusions).
     Hks,
-    /// Average geodesic distance, approximated by graph distances from 32 farthest-point sources.
+    /// Average geodesic distance from 32 farthest-point sources (heat-method geodesics on meshes,
+    /// kNN-graph distances on point clouds).
     Agd,
 }
 
