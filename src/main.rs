@@ -343,10 +343,11 @@ struct PipelineArgs {
     /// Normalization of the completion method's weights.
     #[arg(long, value_enum, default_value = "unit")]
     scaling: ScalingChoice,
-    /// μ1, weight of the Dirichlet energy on X (default: per --scaling).
+    /// μ1, weight of the Dirichlet energy on X (default: per --scaling and --form; with
+    /// --scaling unit 0.01 for the subspace form, 0.3 for fixed-rank, low-rank and low-norm).
     #[arg(long)]
     mu1: Option<f64>,
-    /// μ2, weight of the Dirichlet energy on Y.
+    /// μ2, weight of the Dirichlet energy on Y (default: as μ1).
     #[arg(long)]
     mu2: Option<f64>,
     /// μ3, weight of the L1 term.
@@ -1060,19 +1061,20 @@ fn pipeline_options(p: &PipelineArgs, method: MethodChoice, rich: bool) -> Resul
         ScalingChoice::Unit => Scaling::Unit,
         ScalingChoice::Paper => Scaling::Paper,
     };
-    let mut completion = CompletionOptions::paper(rich, scaling);
+    let form = match p.form {
+        FormChoice::Subspace => Form::Subspace,
+        FormChoice::FixedRank => Form::FixedRank,
+        FormChoice::LowRank => Form::LowRank,
+        FormChoice::LowNorm => Form::LowNorm,
+    };
+    // The form's own default weights; --mu1 … --xi override them below.
+    let mut completion = CompletionOptions::paper(rich, scaling).with_form(form);
     if let Some(k) = p.k {
         completion.k = k;
     }
     if let Some(kp) = p.kprime {
         completion.k_prime = kp;
     }
-    completion.form = match p.form {
-        FormChoice::Subspace => Form::Subspace,
-        FormChoice::FixedRank => Form::FixedRank,
-        FormChoice::LowRank => Form::LowRank,
-        FormChoice::LowNorm => Form::LowNorm,
-    };
     completion.init = match p.init {
         InitChoice::Pad => Init::Pad,
         InitChoice::Svd => Init::Svd,

@@ -922,3 +922,45 @@ fn reproduce_rank_and_l1_write_tables_and_plots() {
         "--pair",
     );
 }
+
+/// `report.json` of a `funcorr match` output directory.
+fn report(out: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn vertex_forms_get_their_own_default_weights() {
+    let d = tmp("form-defaults");
+    let mesh = funcorr::primitives::bumpy_sphere(1); // 42 vertices: the convex form is dense
+    let write = |name: &str| {
+        let p = d.join(name);
+        let m =
+            funcorr::io::MeshData { vertices: mesh.vertices().to_vec(), faces: mesh.faces().to_vec(), colors: None };
+        funcorr::io::write_mesh(&p, &m).unwrap();
+        p
+    };
+    let (x, y) = (write("x.off"), write("y.off"));
+    let params = |extra: &[&str]| -> serde_json::Value {
+        let out = d.join("out");
+        let mut args = vec!["match", x.to_str().unwrap(), y.to_str().unwrap(), "--data", "wks:8", "--method"];
+        args.extend(["completion", "--kprime", "12", "-k", "8", "--init-k", "8", "--refine", "none"]);
+        args.extend(["--max-iterations", "20", "--no-render", "--no-cache", "-o", out.to_str().unwrap()]);
+        args.extend(extra);
+        let r = run(&args);
+        assert!(r.status.success(), "{extra:?}: {}", text(&r.stderr));
+        report(&out)["options"]["completion"]["params"].clone()
+    };
+    let mus =
+        |p: &serde_json::Value| (p["mu1"].as_f64().unwrap(), p["mu2"].as_f64().unwrap(), p["mu4"].as_f64().unwrap());
+    assert_eq!(mus(&params(&[])), (0.01, 0.01, 0.001));
+    assert_eq!(mus(&params(&["--form", "low-norm"])), (0.3, 0.3, 0.001));
+    assert_eq!(mus(&params(&["--form", "fixed-rank"])), (0.3, 0.3, 0.0));
+    assert_eq!(mus(&params(&["--form", "low-rank"])), (0.3, 0.3, 0.001));
+    // The user's weights win; the other one keeps the form's default.
+    assert_eq!(mus(&params(&["--form", "low-norm", "--mu1", "0.05"])), (0.05, 0.3, 0.001));
+    // The paper's literal weights for every form with --scaling paper.
+    assert_eq!(mus(&params(&["--form", "low-norm", "--scaling", "paper"])).0, 1e-8);
+    let h = text(&run(&["match", "--help"]).stdout);
+    assert!(h.contains("0.3 for fixed-rank, low-rank and low-norm"), "{h}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
