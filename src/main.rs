@@ -430,7 +430,8 @@ struct MatchArgs {
     /// Camera of render.png: azimuth,elevation in degrees (0,0: looking along −Z, Y up).
     #[arg(long, default_value = "0,0")]
     view: String,
-    /// Size of render.png, WIDTHxHEIGHT pixels.
+    /// Size of render.png, WIDTHxHEIGHT pixels (each side ≤ 16384, at most 67,108,864 pixels in
+    /// all, e.g. 8192x8192).
     #[arg(long, default_value = "1600x900")]
     size: String,
     /// Do not write render.png.
@@ -1149,11 +1150,17 @@ fn write_mat_npy(path: &Path, c: &faer::Mat<f64>) -> Result<()> {
     funcorr::io::npy::write_npy_matrix(path, &dense)
 }
 
-/// Parses `WIDTHxHEIGHT`.
+/// Parses `WIDTHxHEIGHT` of a side-by-side render and checks it against the renderer's limits
+/// (each side ≤ 16384, at most 2²⁶ pixels in all), so that a bad size fails before any work.
 fn parse_size(s: &str) -> Result<(u32, u32)> {
     let bad = || Error::invalid("--size", format!("'{s}': expected WIDTHxHEIGHT, e.g. 1600x900"));
     let (w, h) = s.split_once('x').ok_or_else(bad)?;
-    Ok((w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?))
+    let (w, h) = (w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?);
+    funcorr::viz::render::check_size(w, h, 2).map_err(|e| match e {
+        Error::Invalid { what, msg } => Error::invalid("--size", format!("'{s}': {what}: {msg}")),
+        other => other,
+    })?;
+    Ok((w, h))
 }
 
 /// The colour-transfer outputs of a map: X coloured by position, Y by pulling the colours back

@@ -929,6 +929,28 @@ fn report(out: &Path) -> serde_json::Value {
 }
 
 #[test]
+fn render_size_is_capped_in_pixels() {
+    let d = tmp("render-size");
+    let (x, y) = (data("tr_reg_000.off"), data("tr_reg_001.off"));
+    let (xs, ys) = (x.to_str().unwrap(), y.to_str().unwrap());
+    let o = d.join("out");
+    // Each side within 16384 but 268 million pixels (768 MiB): refused before any work.
+    for (size, needle) in
+        [("16384x16384", "268435456 pixels"), ("16384x4097", "67125248 pixels"), ("20000x10", "20000")]
+    {
+        let t = std::time::Instant::now();
+        let r = run(&["match", xs, ys, "--size", size, "-o", o.to_str().unwrap(), "--no-cache"]);
+        assert_fails(&r, "--size");
+        assert!(text(&r.stderr).contains(needle), "{size}: {}", text(&r.stderr));
+        assert!(t.elapsed().as_secs_f64() < 5.0, "{size}: the size must be checked first");
+        assert!(!o.exists());
+    }
+    let h = text(&run(&["match", "--help"]).stdout);
+    assert!(h.contains("at most 67,108,864 pixels"), "{h}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
 fn vertex_forms_get_their_own_default_weights() {
     let d = tmp("form-defaults");
     let mesh = funcorr::primitives::bumpy_sphere(1); // 42 vertices: the convex form is dense
