@@ -195,7 +195,8 @@ impl std::fmt::Display for DataSpec {
 
 impl FromStr for DataSpec {
     type Err = Error;
-    /// `segments`, `segments:nonsym`, `wks:N`, `rich` or `landmarks:N` (N ≥ 1).
+    /// `segments`, `segments:nonsym`, `wks:N`, `wks` (= `wks:100`, [`sig::DEFAULT_COUNT`]),
+    /// `rich` or `landmarks:N` (N ≥ 1).
     fn from_str(s: &str) -> Result<Self> {
         let bad = |m: &str| Error::invalid("--data", format!("{s:?}: {m}"));
         let (kind, arg) = s.split_once(':').unwrap_or((s, ""));
@@ -208,10 +209,11 @@ impl FromStr for DataSpec {
         match (kind, arg) {
             ("segments", "" | "sym") => Ok(DataSpec::Segments { symmetric: true }),
             ("segments", "nonsym") => Ok(DataSpec::Segments { symmetric: false }),
+            ("wks", "") if !s.contains(':') => Ok(DataSpec::Wks(sig::DEFAULT_COUNT)),
             ("wks", _) => Ok(DataSpec::Wks(count()?)),
             ("rich", "") => Ok(DataSpec::Rich),
             ("landmarks", _) => Ok(DataSpec::Landmarks(count()?)),
-            _ => Err(bad("expected segments, segments:nonsym, wks:N, rich or landmarks:N")),
+            _ => Err(bad("expected segments, segments:nonsym, wks:N (or wks = wks:100), rich or landmarks:N")),
         }
     }
 }
@@ -712,7 +714,10 @@ mod tests {
             assert_eq!(s.parse::<DataSpec>().unwrap().to_string(), s);
         }
         assert_eq!("segments:sym".parse::<DataSpec>().unwrap(), DataSpec::Segments { symmetric: true });
-        for bad in ["", "wks", "wks:0", "wks:x", "landmarks:-3", "rich:3", "segments:odd", "mser"] {
+        // A count is optional for wks: 100 WKS, as in `funcorr match --data wks`.
+        assert_eq!("wks".parse::<DataSpec>().unwrap(), DataSpec::Wks(100));
+        assert_eq!(sig::DEFAULT_COUNT, 100);
+        for bad in ["", "wks:", "wks:0", "wks:x", "landmarks:-3", "rich:3", "segments:odd", "mser"] {
             let e = bad.parse::<DataSpec>().unwrap_err().to_string();
             assert!(e.contains("--data"), "{bad}: {e}");
         }

@@ -409,7 +409,8 @@ struct MatchArgs {
     x: PathBuf,
     /// Target shape Y.
     y: PathBuf,
-    /// Corresponding data: `wks:N`, `hks:N`, `wks+hks:N`, `segments:X.seg,Y.seg` (labels that
+    /// Corresponding data: `wks:N`, `hks:N`, `wks+hks:N` (N functions of each kind; `wks`,
+    /// `hks`, `wks+hks` without a count mean N = 100), `segments:X.seg,Y.seg` (labels that
     /// agree between the files), `persistence`, `mser`, `landmarks:pairs.txt` (0-based `i j`
     /// per line), `rich` (100 WKS + 100 heat kernel maps localized on the persistence segments,
     /// the paper's rich data) or `rich:X.seg,Y.seg` (on given segments), or `matrix:F.npy,G.npy`.
@@ -962,7 +963,13 @@ fn pair_data(
     use funcorr::descriptors::{self as desc, persistence as pers, signatures as sig};
     let (kind, arg) = spec.split_once(':').unwrap_or((spec, ""));
     let bad = |msg: String| Error::invalid("--data", format!("'{spec}': {msg}"));
-    let count = || arg.parse::<usize>().map_err(|_| bad("expected a count, e.g. wks:100".into()));
+    // `wks`, `hks`, `wks+hks` without a count (and without a colon): DEFAULT_COUNT functions.
+    let count = || {
+        if !spec.contains(':') {
+            return Ok(sig::DEFAULT_COUNT);
+        }
+        arg.parse::<usize>().map_err(|_| bad(format!("expected a count after the colon, e.g. {kind}:100, or none")))
+    };
     let two_paths = || -> Result<(PathBuf, PathBuf)> {
         let (a, b) = arg.split_once(',').ok_or_else(|| bad("expected two files separated by a comma".into()))?;
         Ok((PathBuf::from(a), PathBuf::from(b)))

@@ -929,6 +929,50 @@ fn report(out: &Path) -> serde_json::Value {
 }
 
 #[test]
+fn signature_data_without_a_count_mean_100_functions() {
+    let d = tmp("sig-default");
+    let (x, y) = (data("tr_reg_000.off"), data("tr_reg_001.off"));
+    let (xs, ys) = (x.to_str().unwrap(), y.to_str().unwrap());
+    let cache = d.join("cache");
+    let run_match = |spec: &str, out: &Path| {
+        let o = out.to_str().unwrap();
+        let c = cache.to_str().unwrap();
+        let r = run(&["match", xs, ys, "--data", spec, "--method", "fmap", "-k", "20", "--kprime", "40"]
+            .into_iter()
+            .chain(["--refine", "none", "--no-render", "-o", o, "--cache-dir", c])
+            .collect::<Vec<_>>());
+        assert!(r.status.success(), "{spec}: {}", text(&r.stderr));
+        (report(out), std::fs::read_to_string(out.join("map.txt")).unwrap())
+    };
+    let (r100, map100) = run_match("wks:100", &d.join("wks100"));
+    let (r, map) = run_match("wks", &d.join("wks"));
+    assert_eq!((r["q"].as_u64(), r100["q"].as_u64()), (Some(100), Some(100)));
+    assert_eq!(map, map100, "wks and wks:100 must be the same data");
+    assert_eq!(run_match("hks", &d.join("hks")).0["q"], 100);
+    assert_eq!(run_match("wks+hks", &d.join("both")).0["q"], 200);
+    for bad in ["wks:", "wks:x", "hks:-1"] {
+        let o = d.join("bad");
+        assert_fails(
+            &run(&["match", xs, ys, "--data", bad, "-o", o.to_str().unwrap(), "--cache-dir", cache.to_str().unwrap()]),
+            "--data",
+        );
+    }
+    // --help says so, for match and bench; bench accepts `wks` alone (100 functions).
+    let h = text(&run(&["match", "--help"]).stdout);
+    assert!(h.contains("`wks`, `hks`, `wks+hks` without a count mean N = 100"), "{h}");
+    let h = text(&run(&["bench", "--help"]).stdout);
+    assert!(h.contains("`wks` alone: N = 100"), "{h}");
+    let ds = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/faust");
+    let out = d.join("bench");
+    let args = ["bench", "--dataset", ds.to_str().unwrap(), "--methods", "fmap", "--data", "wks", "--limit", "1"];
+    let r = run(&args.into_iter().chain(["-k", "20", "-q", "-o", out.to_str().unwrap()]).collect::<Vec<_>>());
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let rows = csv(&out.join("pairs.csv"));
+    assert_eq!((rows.len(), rows[1][3].as_str(), rows[1][4].as_str()), (2, "ok", "100"));
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
 fn render_size_is_capped_in_pixels() {
     let d = tmp("render-size");
     let (x, y) = (data("tr_reg_000.off"), data("tr_reg_001.off"));

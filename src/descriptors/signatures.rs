@@ -27,6 +27,10 @@ use super::Descriptors;
 use crate::error::{Error, Result};
 use crate::spectral::Basis;
 
+/// Number of HKS times or WKS energies when the user gives none (`--data wks` = `wks:100` in the
+/// CLI): the paper's rich setting uses 100 WKS.
+pub const DEFAULT_COUNT: usize = 100;
+
 /// Variance factor of the WKS energy bands (Aubry et al.'s `wks_variance`).
 pub const WKS_VARIANCE: f64 = 6.0;
 
