@@ -10,12 +10,13 @@
 //! Why the intrinsic Delaunay triangulation: on a mesh with many obtuse triangles the cotangent
 //! weights of the mesh's own edges can be negative (18 % of the edges of TOSCA `cat0`, angles up
 //! to 177°), A + tW is then not an M-matrix and its solution u is not positive: far from the
-//! source, where the true u is as small as e^(−d/h) ≈ 10⁻³⁰, a third of the vertices got u ≤ 0 and
-//! the gradient directions there were noise. The distances came out 25 % short on average (heat
-//! / exact ≈ 0.75 on `cat0`; up to 100 % short at single vertices). Flipping edges intrinsically
-//! until they are Delaunay changes the triangulation, not the surface (same polyhedral metric,
-//! same vertices), makes every weight ≥ 0, and brings the error back to that of well-shaped
-//! meshes (measured in `examples/heat_accuracy.rs`, table in BENCHMARKS.md). On a mesh that is
+//! source, where the true u is as small as 10⁻³⁰, 17–36 % of the vertices got u ≤ 0 (5 sources)
+//! and the gradient directions there were noise. The distances came out short: mean heat / exact
+//! 0.71 on tosca_r `cat0`, 0.51–0.93 over the TOSCA shapes, up to 100 % short at single vertices.
+//! Flipping edges intrinsically until they are Delaunay changes the triangulation, not the
+//! surface (same polyhedral metric, same vertices), makes every weight ≥ 0, and brings the error
+//! back to that of well-shaped meshes (measured in `examples/heat_accuracy.rs`, table in
+//! BENCHMARKS.md: 1.6–3.9 % mean relative error on every benchmark shape). On a mesh that is
 //! already Delaunay nothing changes. Gradients and divergences are computed per intrinsic
 //! triangle from its edge lengths (a planar layout), never from the 3D positions.
 //!
