@@ -5,7 +5,13 @@
 //! cargo run --release --example persistence_agreement                 # first 10 pairs
 //! cargo run --release --example persistence_agreement -- 20           # first 20 pairs
 //! cargo run --release --example persistence_agreement -- 10 --scan    # also scan HKS time and τ
+//! cargo run --release --example persistence_agreement -- 10 --function agd   # segment by AGD
 //! ```
+//!
+//! `--function` picks the segmentation function: `hks` (the default function), `agd` (average
+//! geodesic distance with the heat method, the library's default), `agd-exact` (exact MMP
+//! distances) or `agd-dijkstra` (edge-path distances, the AGD of the library before issue 16);
+//! always with the default threshold τ. The scan prints the AGD with all three distances.
 //!
 //! For every pair (X, Y) of `../shared/data/faust_r/pairs.txt` (or `$FAUST_R`): segment both
 //! shapes with the default function and threshold, match the segments, and take for each computed
@@ -16,9 +22,10 @@
 use std::path::{Path, PathBuf};
 
 use funcorr::descriptors::persistence::{
-    average_geodesic_distance, hks_function, matched_segment_indicators, persistence_segmentation, segment,
-    DEFAULT_THRESHOLD,
+    average_geodesic_distance_with, default_function, hks_function, matched_segment_indicators,
+    persistence_segmentation, DEFAULT_AGD_SOURCES, DEFAULT_THRESHOLD,
 };
+use funcorr::geodesic::GeodesicMethod;
 use funcorr::io::indices::read_labels_file;
 use funcorr::laplacian::cotangent;
 use funcorr::shape::{Shape, TriMesh};
@@ -47,6 +54,24 @@ fn main() -> funcorr::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let count: usize = args.iter().find_map(|a| a.parse().ok()).unwrap_or(10);
     let scan = args.iter().any(|a| a == "--scan");
+    let function = match args.iter().position(|a| a == "--function").map(|i| args.get(i + 1).map(String::as_str)) {
+        None => "hks",
+        Some(Some(f @ ("hks" | "agd" | "agd-exact" | "agd-dijkstra"))) => f,
+        Some(other) => {
+            return Err(funcorr::Error::invalid(
+                "--function",
+                format!("{other:?}: expected hks, agd, agd-exact or agd-dijkstra"),
+            ))
+        }
+    };
+    let seg_function = |mesh: &TriMesh, basis: &Basis| -> funcorr::Result<Vec<f64>> {
+        match function {
+            "agd" => average_geodesic_distance_with(mesh, DEFAULT_AGD_SOURCES, GeodesicMethod::Heat),
+            "agd-exact" => average_geodesic_distance_with(mesh, DEFAULT_AGD_SOURCES, GeodesicMethod::Exact),
+            "agd-dijkstra" => average_geodesic_distance_with(mesh, DEFAULT_AGD_SOURCES, GeodesicMethod::Dijkstra),
+            _ => default_function(basis),
+        }
+    };
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let dir = std::env::var_os("FAUST_R").map(PathBuf::from).unwrap_or_else(|| root.join("../shared/data/faust_r"));
     let cache = BasisCache::new(root.join("target/persistence-cache"));
@@ -85,23 +110,29 @@ fn main() -> funcorr::Result<()> {
                 let top: Vec<String> = rel.iter().take(9).map(|p| format!("{p:.3}")).collect();
                 println!("{name} c={c:<4} segments {counts:?}  top persistence/range [{}]", top.join(" "));
             }
-            let agd = average_geodesic_distance(&mesh, 32)?;
-            let range = agd.iter().copied().fold(f64::MIN, f64::max) - agd.iter().copied().fold(f64::MAX, f64::min);
-            let all = persistence_segmentation(mesh.n_vertices(), &edges, &agd, 0.0)?;
-            let mut rel: Vec<f64> = all.persistence.iter().map(|p| p / range).collect();
-            rel.sort_by(|a, b| b.total_cmp(a));
-            let counts: Vec<usize> = taus
-                .iter()
-                .map(|&t| persistence_segmentation(mesh.n_vertices(), &edges, &agd, t).map(|s| s.n_segments()))
-                .collect::<funcorr::Result<_>>()?;
-            let top: Vec<String> = rel.iter().take(9).map(|p| format!("{p:.3}")).collect();
-            println!("{name} AGD    segments {counts:?}  top persistence/range [{}]", top.join(" "));
+            for method in [GeodesicMethod::Heat, GeodesicMethod::Exact, GeodesicMethod::Dijkstra] {
+                let agd = average_geodesic_distance_with(&mesh, DEFAULT_AGD_SOURCES, method)?;
+                let range = agd.iter().copied().fold(f64::MIN, f64::max) - agd.iter().copied().fold(f64::MAX, f64::min);
+                let all = persistence_segmentation(mesh.n_vertices(), &edges, &agd, 0.0)?;
+                let mut rel: Vec<f64> = all.persistence.iter().map(|p| p / range).collect();
+                rel.sort_by(|a, b| b.total_cmp(a));
+                let counts: Vec<usize> = taus
+                    .iter()
+                    .map(|&t| persistence_segmentation(mesh.n_vertices(), &edges, &agd, t).map(|s| s.n_segments()))
+                    .collect::<funcorr::Result<_>>()?;
+                let top: Vec<String> = rel.iter().take(9).map(|p| format!("{p:.3}")).collect();
+                println!(
+                    "{name} AGD {:<8} segments {counts:?}  top persistence/range [{}]",
+                    method.name(),
+                    top.join(" ")
+                );
+            }
         }
         println!();
     }
 
     println!(
-        "# default function, τ = {DEFAULT_THRESHOLD}; agreement = matched segment pairs with equal majority .seg.sym label"
+        "# function {function}, τ = {DEFAULT_THRESHOLD}; agreement = matched segment pairs with equal majority .seg.sym label"
     );
     println!("# peaks: matched pairs whose two peak vertices carry the same .seg.sym label");
     println!("# provided sym / nonsym: provided segments recovered by matching them with the same matcher");
@@ -116,8 +147,8 @@ fn main() -> funcorr::Result<()> {
     for (a, b) in &pairs {
         let (mx, bx) = load(&dir, a, &cache)?;
         let (my, by) = load(&dir, b, &cache)?;
-        let sx = segment(&mx.edges(), &bx, DEFAULT_THRESHOLD)?;
-        let sy = segment(&my.edges(), &by, DEFAULT_THRESHOLD)?;
+        let sx = persistence_segmentation(mx.n_vertices(), &mx.edges(), &seg_function(&mx, &bx)?, DEFAULT_THRESHOLD)?;
+        let sy = persistence_segmentation(my.n_vertices(), &my.edges(), &seg_function(&my, &by)?, DEFAULT_THRESHOLD)?;
         let seg = dir.join("segmentation");
         let labels = |s: &str, k: &str, n: usize| read_labels_file(&seg.join(format!("{a}_{b}.{s}.seg.{k}")), n);
         let px = labels(a, "sym", mx.n_vertices())?;

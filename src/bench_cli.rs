@@ -32,7 +32,9 @@ pub(crate) struct BenchArgs {
     #[arg(long, value_enum, value_delimiter = ',', default_value = "fmap,pokrass,coupled,completion")]
     methods: Vec<MethodChoice>,
     /// Data functions: `segments` (the data set's segmentation, .seg.sym; `segments:nonsym` for
-    /// .seg.nonsym), `wks:N`, `rich` (100 WKS + 100 heat kernel maps localized on the segments),
+    /// .seg.nonsym), `wks:N` (`wks` alone: 100 energies from the first 128 eigenpairs, every 2nd
+    /// kept), `rich` (100 WKS + 100 heat kernel maps
+    /// localized on the segments),
     /// or `landmarks:N` (delta functions at N ground-truth landmarks).
     #[arg(long, default_value = "segments")]
     data: String,

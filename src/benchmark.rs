@@ -165,8 +165,11 @@ pub enum DataSpec {
         /// Use the `.sym` label files.
         symmetric: bool,
     },
-    /// WKS descriptors (count energies, normalized) on each shape.
+    /// WKS descriptors (count energies from the whole basis, normalized) on each shape.
     Wks(usize),
+    /// The default WKS recipe ([`sig::WksRecipe`]: 100 energies from the first 128 eigenpairs,
+    /// every 2nd kept).
+    WksDefault,
     /// The paper's rich data: 100 WKS + 100 heat kernel maps localized on the segments.
     Rich,
     /// Delta functions at `N` ground-truth landmarks (farthest-point samples of X's template
@@ -177,7 +180,7 @@ pub enum DataSpec {
 impl DataSpec {
     /// Whether this is the paper's rich setting (many functions) rather than scarce data.
     pub fn is_rich(self) -> bool {
-        matches!(self, DataSpec::Wks(_) | DataSpec::Rich)
+        matches!(self, DataSpec::Wks(_) | DataSpec::WksDefault | DataSpec::Rich)
     }
 }
 
@@ -187,6 +190,7 @@ impl std::fmt::Display for DataSpec {
             DataSpec::Segments { symmetric: true } => write!(f, "segments"),
             DataSpec::Segments { symmetric: false } => write!(f, "segments:nonsym"),
             DataSpec::Wks(n) => write!(f, "wks:{n}"),
+            DataSpec::WksDefault => write!(f, "wks"),
             DataSpec::Rich => write!(f, "rich"),
             DataSpec::Landmarks(n) => write!(f, "landmarks:{n}"),
         }
@@ -195,7 +199,8 @@ impl std::fmt::Display for DataSpec {
 
 impl FromStr for DataSpec {
     type Err = Error;
-    /// `segments`, `segments:nonsym`, `wks:N`, `rich` or `landmarks:N` (N ≥ 1).
+    /// `segments`, `segments:nonsym`, `wks` (the default recipe, [`sig::WksRecipe`]), `wks:N`,
+    /// `rich` or `landmarks:N` (N ≥ 1).
     fn from_str(s: &str) -> Result<Self> {
         let bad = |m: &str| Error::invalid("--data", format!("{s:?}: {m}"));
         let (kind, arg) = s.split_once(':').unwrap_or((s, ""));
@@ -208,10 +213,11 @@ impl FromStr for DataSpec {
         match (kind, arg) {
             ("segments", "" | "sym") => Ok(DataSpec::Segments { symmetric: true }),
             ("segments", "nonsym") => Ok(DataSpec::Segments { symmetric: false }),
+            ("wks", "") if !s.contains(':') => Ok(DataSpec::WksDefault),
             ("wks", _) => Ok(DataSpec::Wks(count()?)),
             ("rich", "") => Ok(DataSpec::Rich),
             ("landmarks", _) => Ok(DataSpec::Landmarks(count()?)),
-            _ => Err(bad("expected segments, segments:nonsym, wks:N, rich or landmarks:N")),
+            _ => Err(bad("expected segments, segments:nonsym, wks, wks:N, rich or landmarks:N")),
         }
     }
 }
@@ -298,6 +304,10 @@ pub fn pair_data(
     match spec {
         DataSpec::Segments { symmetric } => segments(symmetric),
         DataSpec::Wks(count) => Ok((sig::wks(x.basis(), count, true)?, sig::wks(y.basis(), count, true)?)),
+        DataSpec::WksDefault => {
+            let r = sig::WksRecipe::default();
+            Ok((sig::wks_recipe(x.basis(), &r)?, sig::wks_recipe(y.basis(), &r)?))
+        }
         DataSpec::Rich => {
             let (fs, gs) = segments(true)?;
             desc::rich(x.basis(), y.basis(), &fs, &gs, 100, 100)
@@ -722,7 +732,10 @@ mod tests {
             assert_eq!(s.parse::<DataSpec>().unwrap().to_string(), s);
         }
         assert_eq!("segments:sym".parse::<DataSpec>().unwrap(), DataSpec::Segments { symmetric: true });
-        for bad in ["", "wks", "wks:0", "wks:x", "landmarks:-3", "rich:3", "segments:odd", "mser"] {
+        // A count is optional for wks: 100 WKS, as in `funcorr match --data wks`.
+        assert_eq!("wks".parse::<DataSpec>().unwrap(), DataSpec::WksDefault);
+        assert_eq!(sig::DEFAULT_COUNT, 100);
+        for bad in ["", "wks:", "wks:0", "wks:x", "landmarks:-3", "rich:3", "segments:odd", "mser"] {
             let e = bad.parse::<DataSpec>().unwrap_err().to_string();
             assert!(e.contains("--data"), "{bad}: {e}");
         }

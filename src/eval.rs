@@ -45,7 +45,7 @@ pub trait Distances {
     }
 }
 
-impl Distances for crate::geodesic::HeatGeodesics<'_> {
+impl Distances for crate::geodesic::HeatGeodesics {
     fn n_vertices(&self) -> usize {
         self.n()
     }

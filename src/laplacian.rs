@@ -132,7 +132,7 @@ fn opposite_lengths(p: [[f64; 3]; 3]) -> [f64; 3] {
 }
 
 /// Area of a triangle from its edge lengths (Kahan's numerically stable Heron formula).
-fn heron(l: [f64; 3]) -> f64 {
+pub(crate) fn heron(l: [f64; 3]) -> f64 {
     let mut s = l;
     s.sort_by(|a, b| b.total_cmp(a)); // a ≥ b ≥ c
     let [a, b, c] = s;
@@ -145,21 +145,13 @@ fn heron(l: [f64; 3]) -> f64 {
 /// robust-laplacian).
 pub const MOLLIFY_FACTOR: f64 = 1e-6;
 
-/// Cotangent Laplacian of a triangle mesh (paper eq. (2)): w_ij = ½(cot αᵢⱼ + cot βᵢⱼ) and
-/// a_i = ⅓ Σ (one-ring triangle areas).
+/// The triangles of `mesh` that have three distinct vertex indices, and their edge lengths
+/// (opposite corners 0, 1, 2) after intrinsic mollification: when some triangle inequality holds
+/// with a slack below ε = [`MOLLIFY_FACTOR`] × mean edge length, the same δ ≥ 0 is added to every
+/// length so that all hold with slack ε (δ = 0 on meshes without near-degenerate triangles).
 ///
-/// Degenerate triangles: we apply *intrinsic mollification* (Sharp & Crane, "A Laplacian for
-/// nonmanifold triangle meshes", 2020; the default of robust-laplacian): when some triangle's
-/// edge lengths violate the triangle inequality by less than ε = 10⁻⁶ × mean edge length, a
-/// constant δ is added to every edge length so that all inequalities hold with slack ε, and all
-/// cotangents and areas are computed intrinsically from those lengths. On meshes without
-/// (near-)degenerate triangles δ = 0 and the result is the textbook cotangent Laplacian exactly.
-/// Triangles with a repeated vertex index carry no geometry and are skipped.
-///
-/// Errors: a vertex that belongs to no (non-skipped) triangle would have zero mass and is
-/// rejected, naming the vertex.
-pub fn cotangent(mesh: &TriMesh) -> Result<Laplacian> {
-    let n = mesh.n_vertices();
+/// Errors: a mesh without such a triangle.
+pub(crate) fn mollified_lengths(mesh: &TriMesh) -> Result<(Vec<usize>, Vec<[f64; 3]>)> {
     let faces: Vec<usize> = (0..mesh.n_faces())
         .filter(|&f| {
             let t = mesh.faces()[f];
@@ -176,13 +168,41 @@ pub fn cotangent(mesh: &TriMesh) -> Result<Laplacian> {
         .iter()
         .map(|l| (0..3).map(|c| eps - (l[(c + 1) % 3] + l[(c + 2) % 3] - l[c])).fold(0.0f64, f64::max))
         .fold(0.0f64, f64::max);
+    let lengths = lengths.into_iter().map(|l| [l[0] + delta, l[1] + delta, l[2] + delta]).collect();
+    Ok((faces, lengths))
+}
 
+/// Cotangent Laplacian of a triangle mesh (paper eq. (2)): w_ij = ½(cot αᵢⱼ + cot βᵢⱼ) and
+/// a_i = ⅓ Σ (one-ring triangle areas).
+///
+/// Degenerate triangles: we apply *intrinsic mollification* (Sharp & Crane, "A Laplacian for
+/// nonmanifold triangle meshes", 2020; the default of robust-laplacian): when some triangle's
+/// edge lengths violate the triangle inequality by less than ε = 10⁻⁶ × mean edge length, a
+/// constant δ is added to every edge length so that all inequalities hold with slack ε, and all
+/// cotangents and areas are computed intrinsically from those lengths. On meshes without
+/// (near-)degenerate triangles δ = 0 and the result is the textbook cotangent Laplacian exactly.
+/// Triangles with a repeated vertex index carry no geometry and are skipped.
+///
+/// Errors: a vertex that belongs to no (non-skipped) triangle would have zero mass and is
+/// rejected, naming the vertex.
+pub fn cotangent(mesh: &TriMesh) -> Result<Laplacian> {
+    let (faces, lengths) = mollified_lengths(mesh)?;
+    cotangent_from_lengths(mesh.n_vertices(), faces.iter().map(|&f| mesh.faces()[f]).zip(lengths))
+}
+
+/// The cotangent Laplacian of `n` vertices and triangles given intrinsically, each by its vertex
+/// indices and its edge lengths opposite corners 0, 1, 2 (all triangle inequalities holding):
+/// cotangents (b² + c² − a²) / 4·area and masses ⅓ Σ area from the lengths alone.
+///
+/// Errors: a vertex that belongs to no triangle (zero mass), naming it.
+pub(crate) fn cotangent_from_lengths(
+    n: usize,
+    triangles: impl Iterator<Item = ([u32; 3], [f64; 3])>,
+) -> Result<Laplacian> {
     let mut mass = vec![0.0; n];
-    let mut entries = Vec::with_capacity(faces.len() * 9);
-    for (&f, l) in faces.iter().zip(&lengths) {
-        let l = [l[0] + delta, l[1] + delta, l[2] + delta];
+    let mut entries = Vec::with_capacity(triangles.size_hint().0 * 12);
+    for (t, l) in triangles {
         let area = heron(l);
-        let t = mesh.faces()[f];
         for c in 0..3 {
             mass[t[c] as usize] += area / 3.0;
             // cot of the angle at corner c, opposite edge l[c]: (b² + c² − a²) / (4 area).

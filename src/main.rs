@@ -373,10 +373,11 @@ struct PipelineArgs {
     /// Normalization of the completion method's weights.
     #[arg(long, value_enum, default_value = "unit")]
     scaling: ScalingChoice,
-    /// μ1, weight of the Dirichlet energy on X (default: per --scaling).
+    /// μ1, weight of the Dirichlet energy on X (default: per --scaling and --form; with
+    /// --scaling unit 0.01 for the subspace form, 0.3 for fixed-rank, low-rank and low-norm).
     #[arg(long)]
     mu1: Option<f64>,
-    /// μ2, weight of the Dirichlet energy on Y.
+    /// μ2, weight of the Dirichlet energy on Y (default: as μ1).
     #[arg(long)]
     mu2: Option<f64>,
     /// μ3, weight of the L1 term.
@@ -469,7 +470,8 @@ struct MatchArgs {
     /// Target shape Y.
     y: PathBuf,
     /// Corresponding data: `wks` (the default: 100 WKS energies from the first 128 eigenpairs,
-    /// every 2nd kept), `wks:N` (N from the whole basis), `hks:N`, `wks+hks:N`, `segments:X.seg,Y.seg` (labels that
+    /// every 2nd kept), `wks:N` (N WKS from the whole basis), `hks:N`, `wks+hks:N` (`hks` and
+    /// `wks+hks` without a count mean N = 100), `segments:X.seg,Y.seg` (labels that
     /// agree between the files), `persistence`, `mser`, `landmarks:pairs.txt` (0-based `i j`
     /// per line), `rich` (100 WKS + 100 heat kernel maps localized on the persistence segments,
     /// the paper's rich data) or `rich:X.seg,Y.seg` (on given segments), or `matrix:F.npy,G.npy`.
@@ -490,7 +492,8 @@ struct MatchArgs {
     /// Camera of render.png: azimuth,elevation in degrees (0,0: looking along −Z, Y up).
     #[arg(long, default_value = "0,0")]
     view: String,
-    /// Size of render.png, WIDTHxHEIGHT pixels.
+    /// Size of render.png, WIDTHxHEIGHT pixels (each side ≤ 16384, at most 67,108,864 pixels in
+    /// all, e.g. 8192x8192).
     #[arg(long, default_value = "1600x900")]
     size: String,
     /// Do not write render.png.
@@ -547,7 +550,7 @@ enum GeodesicsChoice {
     /// stopped at its predicted point: fast for good maps, up to a full solve per badly mapped
     /// point for poor ones (≈ 0.05 s each on 5,000 vertices, ≈ 1 s on 28,000).
     Exact,
-    /// The heat method (approximate, ~1–3% mean relative error).
+    /// The heat method (approximate, ~2–4% mean relative error).
     Heat,
     /// Dijkstra on the mesh edges (upper bound, ~5% mean relative error).
     Dijkstra,
@@ -609,7 +612,8 @@ struct RegionArgs {
 enum SegFunction {
     /// Scale-normalized heat kernel signature at t = --hks-time / λ₁ (maxima at protrusions).
     Hks,
-    /// Average geodesic distance, approximated by graph distances from 32 farthest-point sources.
+    /// Average geodesic distance from 32 farthest-point sources (heat-method geodesics on meshes,
+    /// kNN-graph distances on point clouds).
     Agd,
 }
 
@@ -1043,7 +1047,13 @@ fn pair_data(
     use funcorr::descriptors::{self as desc, persistence as pers, signatures as sig};
     let (kind, arg) = spec.split_once(':').unwrap_or((spec, ""));
     let bad = |msg: String| Error::invalid("--data", format!("'{spec}': {msg}"));
-    let count = || arg.parse::<usize>().map_err(|_| bad("expected a count, e.g. wks:100".into()));
+    // `wks`, `hks`, `wks+hks` without a count (and without a colon): DEFAULT_COUNT functions.
+    let count = || {
+        if !spec.contains(':') {
+            return Ok(sig::DEFAULT_COUNT);
+        }
+        arg.parse::<usize>().map_err(|_| bad(format!("expected a count after the colon, e.g. {kind}:100, or none")))
+    };
     let two_paths = || -> Result<(PathBuf, PathBuf)> {
         let (a, b) = arg.split_once(',').ok_or_else(|| bad("expected two files separated by a comma".into()))?;
         Ok((PathBuf::from(a), PathBuf::from(b)))
@@ -1059,7 +1069,7 @@ fn pair_data(
         }
     };
     match kind {
-        "wks" if arg.is_empty() => {
+        "wks" if !spec.contains(':') => {
             let r = sig::WksRecipe::default();
             Ok((sig::wks_recipe(bx, &r)?, sig::wks_recipe(by, &r)?))
         }
@@ -1147,19 +1157,20 @@ fn pipeline_options(p: &PipelineArgs, method: MethodChoice, rich: bool) -> Resul
         ScalingChoice::Unit => Scaling::Unit,
         ScalingChoice::Paper => Scaling::Paper,
     };
-    let mut completion = CompletionOptions::paper(rich, scaling);
+    let form = match p.form {
+        FormChoice::Subspace => Form::Subspace,
+        FormChoice::FixedRank => Form::FixedRank,
+        FormChoice::LowRank => Form::LowRank,
+        FormChoice::LowNorm => Form::LowNorm,
+    };
+    // The form's own default weights; --mu1 … --xi override them below.
+    let mut completion = CompletionOptions::paper(rich, scaling).with_form(form);
     if let Some(k) = p.k {
         completion.k = k;
     }
     if let Some(kp) = p.kprime {
         completion.k_prime = kp;
     }
-    completion.form = match p.form {
-        FormChoice::Subspace => Form::Subspace,
-        FormChoice::FixedRank => Form::FixedRank,
-        FormChoice::LowRank => Form::LowRank,
-        FormChoice::LowNorm => Form::LowNorm,
-    };
     completion.init = match p.init {
         InitChoice::Pad => Init::Pad,
         InitChoice::Svd => Init::Svd,
@@ -1281,11 +1292,17 @@ fn write_mat_npy(path: &Path, c: &faer::Mat<f64>) -> Result<()> {
     funcorr::io::npy::write_npy_matrix(path, &dense)
 }
 
-/// Parses `WIDTHxHEIGHT`.
+/// Parses `WIDTHxHEIGHT` of a side-by-side render and checks it against the renderer's limits
+/// (each side ≤ 16384, at most 2²⁶ pixels in all), so that a bad size fails before any work.
 fn parse_size(s: &str) -> Result<(u32, u32)> {
     let bad = || Error::invalid("--size", format!("'{s}': expected WIDTHxHEIGHT, e.g. 1600x900"));
     let (w, h) = s.split_once('x').ok_or_else(bad)?;
-    Ok((w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?))
+    let (w, h) = (w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?);
+    funcorr::viz::render::check_size(w, h, 2).map_err(|e| match e {
+        Error::Invalid { what, msg } => Error::invalid("--size", format!("'{s}': {what}: {msg}")),
+        other => other,
+    })?;
+    Ok((w, h))
 }
 
 /// The colour-transfer outputs of a map: X coloured by position, Y by pulling the colours back

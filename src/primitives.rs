@@ -110,6 +110,28 @@ pub fn rectangle(a: f64, b: f64, nx: u32, ny: u32) -> TriMesh {
     TriMesh::new(v, f).expect("rectangle is valid")
 }
 
+/// A flat parallelogram grid with only obtuse triangles: the vertices (i + s·j, j, 0) for
+/// 0 ≤ i ≤ nx, 0 ≤ j ≤ ny (unit spacing, shear s), each cell cut along its long diagonal, from
+/// (i, j) to (i + 1, j + 1). For s > 0 every interior diagonal is non-Delaunay (its two opposite
+/// angles sum to more than π): the worst case of a cotangent Laplacian with negative weights,
+/// on a surface whose geodesic distances are Euclidean (the parallelogram is convex).
+pub fn sheared_grid(nx: u32, ny: u32, shear: f64) -> TriMesh {
+    let mut v = Vec::with_capacity(((nx + 1) * (ny + 1)) as usize);
+    for j in 0..=ny {
+        for i in 0..=nx {
+            v.push([i as f64 + shear * j as f64, j as f64, 0.0]);
+        }
+    }
+    let id = |i: u32, j: u32| j * (nx + 1) + i;
+    let mut f = Vec::with_capacity((2 * nx * ny) as usize);
+    for j in 0..ny {
+        for i in 0..nx {
+            f.extend([[id(i, j), id(i + 1, j), id(i + 1, j + 1)], [id(i, j), id(i + 1, j + 1), id(i, j + 1)]]);
+        }
+    }
+    TriMesh::new(v, f).expect("sheared grid is valid")
+}
+
 /// Edges of the cycle graph on n vertices, with unit weights.
 pub fn cycle_edges(n: usize) -> Vec<(usize, usize, f64)> {
     (0..n).map(|i| (i, (i + 1) % n, 1.0)).collect()

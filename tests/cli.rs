@@ -922,3 +922,113 @@ fn reproduce_rank_and_l1_write_tables_and_plots() {
         "--pair",
     );
 }
+
+/// `report.json` of a `funcorr match` output directory.
+fn report(out: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn signature_data_without_a_count_use_the_defaults() {
+    let d = tmp("sig-default");
+    let (x, y) = (data("tr_reg_000.off"), data("tr_reg_001.off"));
+    let (xs, ys) = (x.to_str().unwrap(), y.to_str().unwrap());
+    let cache = d.join("cache");
+    let run_match = |spec: &str, out: &Path| {
+        let o = out.to_str().unwrap();
+        let c = cache.to_str().unwrap();
+        let r = run(&["match", xs, ys, "--data", spec, "--method", "fmap", "-k", "20", "--kprime", "40"]
+            .into_iter()
+            .chain(["--refine", "none", "--no-render", "-o", o, "--cache-dir", c])
+            .collect::<Vec<_>>());
+        assert!(r.status.success(), "{spec}: {}", text(&r.stderr));
+        (report(out), std::fs::read_to_string(out.join("map.txt")).unwrap())
+    };
+    // `wks` is the default recipe: 100 energies from the first 128 eigenpairs (here all 40),
+    // every 2nd kept.
+    let (r100, _) = run_match("wks:100", &d.join("wks100"));
+    let (r, _) = run_match("wks", &d.join("wks"));
+    assert_eq!((r["q"].as_u64(), r100["q"].as_u64()), (Some(50), Some(100)));
+    assert_eq!(run_match("hks", &d.join("hks")).0["q"], 100);
+    assert_eq!(run_match("wks+hks", &d.join("both")).0["q"], 200);
+    for bad in ["wks:", "wks:x", "hks:-1"] {
+        let o = d.join("bad");
+        assert_fails(
+            &run(&["match", xs, ys, "--data", bad, "-o", o.to_str().unwrap(), "--cache-dir", cache.to_str().unwrap()]),
+            "--data",
+        );
+    }
+    // --help says so, for match and bench; bench accepts `wks` alone (100 functions).
+    let h = text(&run(&["match", "--help"]).stdout);
+    assert!(h.contains("`hks` and `wks+hks` without a count mean N = 100"), "{h}");
+    assert!(h.contains("100 WKS energies from the first 128 eigenpairs"), "{h}");
+    let h = text(&run(&["bench", "--help"]).stdout);
+    assert!(h.contains("`wks` alone: 100 energies from the first 128 eigenpairs, every 2nd"), "{h}");
+    let ds = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/faust");
+    let out = d.join("bench");
+    let args = ["bench", "--dataset", ds.to_str().unwrap(), "--methods", "fmap", "--data", "wks", "--limit", "1"];
+    let r = run(&args.into_iter().chain(["-k", "20", "-q", "-o", out.to_str().unwrap()]).collect::<Vec<_>>());
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let rows = csv(&out.join("pairs.csv"));
+    assert_eq!((rows.len(), rows[1][3].as_str(), rows[1][4].as_str()), (2, "ok", "50"));
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn render_size_is_capped_in_pixels() {
+    let d = tmp("render-size");
+    let (x, y) = (data("tr_reg_000.off"), data("tr_reg_001.off"));
+    let (xs, ys) = (x.to_str().unwrap(), y.to_str().unwrap());
+    let o = d.join("out");
+    // Each side within 16384 but 268 million pixels (768 MiB): refused before any work.
+    for (size, needle) in
+        [("16384x16384", "268435456 pixels"), ("16384x4097", "67125248 pixels"), ("20000x10", "20000")]
+    {
+        let t = std::time::Instant::now();
+        let r = run(&["match", xs, ys, "--size", size, "-o", o.to_str().unwrap(), "--no-cache"]);
+        assert_fails(&r, "--size");
+        assert!(text(&r.stderr).contains(needle), "{size}: {}", text(&r.stderr));
+        assert!(t.elapsed().as_secs_f64() < 5.0, "{size}: the size must be checked first");
+        assert!(!o.exists());
+    }
+    let h = text(&run(&["match", "--help"]).stdout);
+    assert!(h.contains("at most 67,108,864 pixels"), "{h}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn vertex_forms_get_their_own_default_weights() {
+    let d = tmp("form-defaults");
+    let mesh = funcorr::primitives::bumpy_sphere(1); // 42 vertices: the convex form is dense
+    let write = |name: &str| {
+        let p = d.join(name);
+        let m =
+            funcorr::io::MeshData { vertices: mesh.vertices().to_vec(), faces: mesh.faces().to_vec(), colors: None };
+        funcorr::io::write_mesh(&p, &m).unwrap();
+        p
+    };
+    let (x, y) = (write("x.off"), write("y.off"));
+    let params = |extra: &[&str]| -> serde_json::Value {
+        let out = d.join("out");
+        let mut args = vec!["match", x.to_str().unwrap(), y.to_str().unwrap(), "--data", "wks:8", "--method"];
+        args.extend(["completion", "--kprime", "12", "-k", "8", "--init-k", "8", "--refine", "none"]);
+        args.extend(["--max-iterations", "20", "--no-render", "--no-cache", "-o", out.to_str().unwrap()]);
+        args.extend(extra);
+        let r = run(&args);
+        assert!(r.status.success(), "{extra:?}: {}", text(&r.stderr));
+        report(&out)["options"]["completion"]["params"].clone()
+    };
+    let mus =
+        |p: &serde_json::Value| (p["mu1"].as_f64().unwrap(), p["mu2"].as_f64().unwrap(), p["mu4"].as_f64().unwrap());
+    assert_eq!(mus(&params(&[])), (0.01, 0.01, 0.001));
+    assert_eq!(mus(&params(&["--form", "low-norm"])), (0.3, 0.3, 0.001));
+    assert_eq!(mus(&params(&["--form", "fixed-rank"])), (0.3, 0.3, 0.0));
+    assert_eq!(mus(&params(&["--form", "low-rank"])), (0.3, 0.3, 0.001));
+    // The user's weights win; the other one keeps the form's default.
+    assert_eq!(mus(&params(&["--form", "low-norm", "--mu1", "0.05"])), (0.05, 0.3, 0.001));
+    // The paper's literal weights for every form with --scaling paper.
+    assert_eq!(mus(&params(&["--form", "low-norm", "--scaling", "paper"])).0, 1e-8);
+    let h = text(&run(&["match", "--help"]).stdout);
+    assert!(h.contains("0.3 for fixed-rank, low-rank and low-norm"), "{h}");
+    std::fs::remove_dir_all(&d).unwrap();
+}

@@ -41,6 +41,11 @@
 //! - low norm: mass norms divided by k, ½ (‖A‖² + ‖B‖²) / k (= 1 for orthonormal factors);
 //! - commutativity: eigenvalues divided by the largest in the block, as in [`crate::fmap`].
 //!
+//! Default weights ([`CompletionParams::defaults_for_form`]): μ1 = μ2 = 0.01, μ3 = 0.01,
+//! μ4 = 0.001, ξ = 0.01 for the subspace form; the vertex forms (8)–(10) take μ1 = μ2 = 0.3
+//! ([`objective::VERTEX_DIRICHLET`]), because on the vertices the Dirichlet terms alone do what
+//! the truncation to k' eigenfunctions does in (11).
+//!
 //! Modules: [`terms`] (each term of (11) with its gradient), [`l1`] (the blocked L1 kernel),
 //! [`objective`] (their weighted sum), [`lbfgs`] and [`optimize`](mod@optimize) (L-BFGS with a
 //! strong-Wolfe line search, initializations), [`full`], [`fixed_rank`], [`convex`], [`solve`].

@@ -38,8 +38,9 @@
 //! gap. Larger times lose the head (at t = 1/λ₁ its persistence is 0.05–0.08, so τ = 0.1 gives 4
 //! segments), smaller ones raise the noise (at t = 0.1/λ₁ the sixth peak reaches 0.055).
 //!
-//! [`average_geodesic_distance`] is an alternative (Skraba et al. use both), approximated by graph
-//! distances; on the same shapes it gives 5 segments for τ ∈ [0.1, 0.2] but 12–13 at τ = 0.05.
+//! [`average_geodesic_distance`] is an alternative (Skraba et al. use both), computed with the
+//! heat method (graph distances before issue 16); on the same shapes it gives 5 segments for
+//! τ ∈ [0.1, 0.2] but 13 at τ = 0.05 (segment agreement with AGD: EXPERIMENTS.md).
 //!
 //! # Matching
 //!
@@ -58,6 +59,8 @@ use super::matching::{match_regions, RegionMatch};
 use super::signatures::{hks, hks_times, wks};
 use super::{segments, Descriptors};
 use crate::error::{Error, Result};
+use crate::eval::Distances;
+use crate::geodesic::GeodesicMethod;
 use crate::laplacian::Laplacian;
 use crate::shape::{adjacency, PointSet, TriMesh};
 use crate::spectral::Basis;
@@ -336,16 +339,64 @@ pub fn average_graph_distance(points: &PointSet, edges: &[[u32; 2]], sources: us
     Ok(sum.into_iter().map(|s| s / count).collect())
 }
 
+/// Average distance of every vertex to `sources` farthest-point-sampled vertices (length n, in
+/// the units of `d`), for any distance solver `d` on a connected shape.
+///
+/// The first source is the vertex farthest from vertex 0; each next one is the vertex farthest
+/// from the sources so far (ties: the lowest index; deterministic).
+///
+/// Errors: `sources` = 0, a vertex unreachable from vertex 0, and those of the solver.
+pub fn average_distance(d: &dyn Distances, sources: usize) -> Result<Vec<f64>> {
+    let n = d.n_vertices();
+    if sources == 0 {
+        return Err(Error::invalid("sources", "need at least one source"));
+    }
+    if n == 0 {
+        return Err(Error::invalid("shape", "it has no vertices"));
+    }
+    let argmax = |d: &[f64]| (0..n).fold(0, |best, i| if d[i] > d[best] { i } else { best });
+    let d0 = d.distances_from(&[0])?;
+    let d0 = d0.col_as_slice(0);
+    if let Some(i) = d0.iter().position(|d| !d.is_finite()) {
+        return Err(Error::invalid("shape", format!("it is disconnected (vertex {i} is unreachable from vertex 0)")));
+    }
+    let mut source = argmax(d0);
+    let mut sum = vec![0.0; n];
+    let mut nearest = vec![f64::INFINITY; n];
+    for _ in 0..sources.min(n) {
+        let col = d.distances_from(&[source])?;
+        for (i, &x) in col.col_as_slice(0).iter().enumerate() {
+            sum[i] += x;
+            nearest[i] = nearest[i].min(x);
+        }
+        source = argmax(&nearest);
+    }
+    let count = sources.min(n) as f64;
+    Ok(sum.into_iter().map(|s| s / count).collect())
+}
+
 /// Average geodesic distance (Skraba et al.'s alternative function, maxima at the extremities) of
-/// every vertex of a mesh, approximated by [`average_graph_distance`] along the mesh edges from
-/// `sources` farthest-point samples (e.g. [`DEFAULT_AGD_SOURCES`]) and divided by √(surface area),
-/// so it is scale invariant. Graph distances overestimate geodesics by a few percent.
+/// every vertex of a mesh: [`average_distance`] from `sources` farthest-point samples (e.g.
+/// [`DEFAULT_AGD_SOURCES`]) with the heat method ([`crate::geodesic::HeatGeodesics`], 2–4 % mean
+/// error against exact distances on the benchmark shapes, and smooth), divided by √(surface
+/// area) so it is scale invariant (dimensionless). Same as
+/// [`average_geodesic_distance_with`] with [`GeodesicMethod::Heat`].
+///
+/// Errors: a mesh of zero area, several components or unreferenced vertices.
 pub fn average_geodesic_distance(mesh: &TriMesh, sources: usize) -> Result<Vec<f64>> {
+    average_geodesic_distance_with(mesh, sources, GeodesicMethod::Heat)
+}
+
+/// [`average_geodesic_distance`] with the distances of `method`: exact (MMP; 32 full solves, a
+/// few seconds on 5,000 vertices), heat (one factorization, then two triangular solves per
+/// source), or Dijkstra on the mesh edges (overestimates by about 6 %; the function used before
+/// issue 16).
+pub fn average_geodesic_distance_with(mesh: &TriMesh, sources: usize, method: GeodesicMethod) -> Result<Vec<f64>> {
     let area = mesh.total_area();
     if area.is_nan() || area <= 0.0 {
         return Err(Error::invalid("mesh", "it has zero area"));
     }
-    let d = average_graph_distance(&mesh.to_point_set(), &mesh.edges(), sources)?;
+    let d = average_distance(method.build(mesh)?.as_ref(), sources)?;
     Ok(d.into_iter().map(|x| x / area.sqrt()).collect())
 }
 
@@ -555,6 +606,40 @@ mod tests {
         let mean = d.iter().sum::<f64>() / d.len() as f64 / std::f64::consts::FRAC_PI_2;
         // Measured: 1.063 (per vertex 1.025 to 1.113, as 32 samples are not perfectly even).
         assert!(mean > 1.02 && mean < 1.10, "{mean}");
+    }
+
+    #[test]
+    fn average_geodesic_distance_uses_surface_geodesics() {
+        // Unit sphere: the mean over the vertices of the average distance to any sources is π/2
+        // for exact geodesics; the default (heat) AGD must be close to the exact one, the edge
+        // paths used before were 6 % long.
+        let s = icosphere(4);
+        let scale = s.total_area().sqrt() / std::f64::consts::FRAC_PI_2;
+        let agd = |m: GeodesicMethod| average_geodesic_distance_with(&s, DEFAULT_AGD_SOURCES, m).unwrap();
+        let (exact, heat, dijkstra) =
+            (agd(GeodesicMethod::Exact), agd(GeodesicMethod::Heat), agd(GeodesicMethod::Dijkstra));
+        assert_eq!(heat, average_geodesic_distance(&s, DEFAULT_AGD_SOURCES).unwrap());
+        let mean = |d: &[f64]| d.iter().sum::<f64>() / d.len() as f64 * scale;
+        assert!((mean(&exact) - 1.0).abs() < 0.003, "exact {}", mean(&exact));
+        assert!((mean(&heat) - 1.0).abs() < 0.015, "heat {}", mean(&heat));
+        assert!(mean(&dijkstra) > 1.04, "dijkstra {}", mean(&dijkstra));
+        // Per vertex, the 32 sources are not perfectly even: measured 0.966–1.033 × π/2 (exact),
+        // 0.963–1.019 (heat), 1.025–1.113 (Dijkstra); means 0.9994, 0.991, 1.063.
+        for (name, d) in [("exact", &exact), ("heat", &heat)] {
+            let (lo, hi) = d.iter().fold((f64::INFINITY, 0.0f64), |(l, h), &x| (l.min(x * scale), h.max(x * scale)));
+            assert!(lo > 0.95 && hi < 1.05, "{name}: {lo}–{hi}");
+        }
+        // Errors: no source, a disconnected mesh.
+        assert!(average_geodesic_distance(&s, 0).is_err());
+        let n = s.n_vertices() as u32;
+        let mut v = s.vertices().to_vec();
+        v.extend(s.vertices().iter().map(|p| [p[0] + 3.0, p[1], p[2]]));
+        let mut f = s.faces().to_vec();
+        f.extend(s.faces().iter().map(|t| [t[0] + n, t[1] + n, t[2] + n]));
+        let two = TriMesh::new(v, f).unwrap();
+        for m in GeodesicMethod::ALL {
+            assert!(average_geodesic_distance_with(&two, 4, m).is_err(), "{m}");
+        }
     }
 
     #[test]

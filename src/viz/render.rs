@@ -29,6 +29,12 @@ use crate::shape::{PointSet, TriMesh};
 
 /// Largest accepted image width or height, in pixels.
 pub const MAX_SIZE: u32 = 16384;
+/// Largest accepted pixel count width × height: 2²⁶ = 67,108,864 (64 Mi pixels, e.g. 8192 × 8192
+/// or 16384 × 4096). The image is one RGB buffer of 3 bytes per pixel, so this caps it at 192 MiB
+/// (16384 × 16384 would be 768 MiB, plus as much again while the PNG is written by a caller
+/// holding a copy); 64 Mi pixels is already a 27-inch square print at 300 dpi. Rendering adds
+/// per-thread band buffers of 2,880 bytes per image column, about 47 MB at the widest.
+pub const MAX_PIXELS: u64 = 1 << 26;
 /// Supersampling factor: each pixel averages `SSAA × SSAA` samples.
 pub const SSAA: usize = 3;
 /// Fraction of a panel's smaller side spanned by the diameter of the shape's bounding sphere.
@@ -157,8 +163,8 @@ impl Image {
     }
 }
 
-/// Renders one shape filling a `width × height` image (pixels, each in 1..=[`MAX_SIZE`]) on a
-/// white background, seen from `view`.
+/// Renders one shape filling a `width × height` image (pixels, each in 1..=[`MAX_SIZE`], at most
+/// [`MAX_PIXELS`] in all) on a white background, seen from `view`.
 ///
 /// Errors when a size is out of range, the shape has no vertex, `colors` does not have one entry
 /// per vertex, a coordinate is not finite (or so large that the shape's extent overflows), or a
@@ -171,7 +177,7 @@ pub fn render(shape: &ColoredShape, width: u32, height: u32, view: &View) -> Res
 }
 
 /// Renders X and Y side by side in one `width × height` image (pixels; width in 2..=[`MAX_SIZE`],
-/// height in 1..=[`MAX_SIZE`]): X in the left panel (⌊width/2⌋ pixels wide), Y in the right one,
+/// height in 1..=[`MAX_SIZE`], at most [`MAX_PIXELS`] in all): X in the left panel (⌊width/2⌋ pixels wide), Y in the right one,
 /// each fitted to its own panel, both seen from `view`, on a white background.
 ///
 /// Errors as [`render`] does, naming `X` or `Y`.
@@ -187,7 +193,8 @@ pub fn render_pair(x: &ColoredShape, y: &ColoredShape, width: u32, height: u32, 
 /// Writes `image` as an 8-bit RGB PNG file at `path`.
 ///
 /// Errors ([`Error::Io`] naming `path`) when the file cannot be written, and ([`Error::Invalid`])
-/// when the image is empty, larger than [`MAX_SIZE`] on a side, or `rgb` has the wrong length.
+/// when the image is empty, larger than [`MAX_SIZE`] on a side or [`MAX_PIXELS`] in all, or `rgb`
+/// has the wrong length.
 pub fn write_png(path: &Path, image: &Image) -> Result<()> {
     let (w, h) = (image.width, image.height);
     check_size(w, h, 1).map_err(|e| Error::invalid("image", e.to_string()))?;
@@ -215,12 +222,28 @@ pub fn write_png(path: &Path, image: &Image) -> Result<()> {
     out.flush().map_err(|e| Error::io(path, e))
 }
 
-fn check_size(width: u32, height: u32, min_width: u32) -> Result<()> {
+/// Checks an image size before anything is allocated: width in `min_width`..=[`MAX_SIZE`] (1 for
+/// [`render`], 2 for [`render_pair`]), height in 1..=[`MAX_SIZE`], width × height at most
+/// [`MAX_PIXELS`].
+///
+/// Errors ([`Error::Invalid`]) naming `width`, `height` or `size` (the pixel count).
+pub fn check_size(width: u32, height: u32, min_width: u32) -> Result<()> {
     if !(min_width..=MAX_SIZE).contains(&width) {
         return Err(Error::invalid("width", format!("{width} pixels is outside {min_width}..={MAX_SIZE}")));
     }
     if !(1..=MAX_SIZE).contains(&height) {
         return Err(Error::invalid("height", format!("{height} pixels is outside 1..={MAX_SIZE}")));
+    }
+    let pixels = width as u64 * height as u64;
+    if pixels > MAX_PIXELS {
+        return Err(Error::invalid(
+            "size",
+            format!(
+                "{width}×{height} is {pixels} pixels ({} MiB of RGB), more than the limit of {MAX_PIXELS} \
+                 (e.g. 8192×8192)",
+                (3 * pixels) >> 20
+            ),
+        ));
     }
     Ok(())
 }
@@ -850,6 +873,13 @@ mod tests {
         invalid(render(&ok, MAX_SIZE + 1, 10, &v), "width");
         invalid(render(&ok, 10, u32::MAX, &v), "height");
         invalid(render_pair(&ok, &ok, 1, 10, &v), "width");
+        // Each side within MAX_SIZE but too many pixels in all: refused before any allocation.
+        invalid(render(&ok, MAX_SIZE, MAX_SIZE, &v), "size");
+        invalid(render_pair(&ok, &ok, MAX_SIZE, 4097, &v), "size");
+        let e = check_size(MAX_SIZE, MAX_SIZE, 1).unwrap_err().to_string();
+        assert!(e.contains("268435456 pixels") && e.contains("768 MiB"), "{e}");
+        assert!(check_size(8192, 8192, 1).is_ok() && check_size(MAX_SIZE, 4096, 2).is_ok());
+        assert!(check_size(8193, 8192, 1).is_err());
         invalid(render(&ColoredShape { colors: &c[1..], ..ok }, 10, 10, &v), "shape");
         invalid(render(&ColoredShape { vertices: &[], faces: &[], colors: &[] }, 10, 10, &v), "shape");
         let mut nan = s.vertices().to_vec();
