@@ -357,8 +357,9 @@ struct PipelineArgs {
     /// Form of the completion method.
     #[arg(long, value_enum, default_value = "subspace")]
     form: FormChoice,
-    /// Size k of the functional map (baselines; default 50) or the rank k of the completion
-    /// method (default 250 for scarce data, 30 for rich data: wks, hks, rich, matrix).
+    /// Size k of the functional map (baselines; default 50; for the axiomatic method a single
+    /// candidate size) or the rank k of the completion method (default 250 for scarce data, 30
+    /// for rich data: wks, hks, rich, matrix).
     #[arg(short)]
     k: Option<usize>,
     /// Eigenpairs per shape k': the basis size of the baselines (default 200) or the subspace
@@ -443,9 +444,9 @@ struct PipelineArgs {
     #[arg(long, default_value_t = 10)]
     signed: usize,
     /// Sizes k of the axiomatic method's candidate functional maps (the one with the least
-    /// metric distortion after a short ZoomOut is kept).
-    #[arg(long, value_delimiter = ',', default_value = "20,30,40,50")]
-    candidates: Vec<usize>,
+    /// metric distortion after a short ZoomOut is kept; default 20,30,40,50, or -k alone).
+    #[arg(long, value_delimiter = ',')]
+    candidates: Option<Vec<usize>>,
     /// Weight of descriptor preservation in the axiomatic energy.
     #[arg(long, default_value_t = 1.0)]
     w_descriptors: f64,
@@ -1223,9 +1224,25 @@ fn pipeline_options(p: &PipelineArgs, method: MethodChoice, rich: bool) -> Resul
             OrientationChoice::Ignore => Orientation::Ignore,
         };
         a.signed = p.signed;
-        a.candidates = p.candidates.clone();
+        if let Some(c) = &p.candidates {
+            a.candidates = c.clone();
+        } else if let Some(k) = p.k {
+            a.candidates = vec![k];
+        }
+        match p.refine {
+            Some(Refine::None) => a.refine.k_final = 0,
+            Some(Refine::Icp) if method == MethodChoice::Axiomatic => {
+                return Err(Error::invalid(
+                    "--refine",
+                    "the axiomatic method refines with ZoomOut (or none); ICP is for the other methods",
+                ))
+            }
+            _ => {}
+        }
         if let Some(k) = p.zoomout_to {
-            a.refine.k_final = k;
+            if p.refine != Some(Refine::None) {
+                a.refine.k_final = k;
+            }
         }
         if let Some(s) = p.zoomout_step {
             a.refine.step = s;
@@ -1530,11 +1547,23 @@ fn demo_match(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&TriMesh, &Ba
     let args = default_match_args()?;
     let opts = match_options(&args)?;
     let t = Instant::now();
-    let (x, y) = (Shape::Mesh(mx.clone()), Shape::Mesh(my.clone()));
-    let (lx, ly) = (laplacian::cotangent(mx)?, laplacian::cotangent(my)?);
+    use funcorr::prepared::Surface;
+    let px = funcorr::PreparedShape::from_parts(
+        Shape::Mesh(mx.clone()),
+        laplacian::cotangent(mx)?,
+        bx.clone(),
+        Some(Surface::Mesh),
+    );
+    let py = funcorr::PreparedShape::from_parts(
+        Shape::Mesh(my.clone()),
+        laplacian::cotangent(my)?,
+        by.clone(),
+        Some(Surface::Mesh),
+    );
     let seg = &args.seg;
-    let (f, g) = pair_data(&args.data, (&x, &lx, bx), (&y, &ly, by), seg)?;
-    let r = funcorr::matching::run(bx, by, Some((&lx, &ly)), &f, &g, &opts)?;
+    let (f, g) = pair_data(&args.data, (&px.shape, &px.laplacian, bx), (&py.shape, &py.laplacian, by), seg)?;
+    let r = funcorr::matching::run_prepared(&px, &py, &f, &g, &opts)?;
+    let (x, y) = (&px.shape, &py.shape);
     let seconds = t.elapsed().as_secs_f64();
     let vts = |i: usize, n: usize| {
         funcorr::io::indices::read_index_list(DEMO_VTS[i].as_bytes(), Path::new("demo.vts"), true, n)
@@ -1557,7 +1586,7 @@ fn demo_match(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&TriMesh, &Ba
     outln!("  allowing the left-right flip: mean ×100 = {:.2}", 100.0 * sym.mean);
     write_map_files(out, &r.map_xy, false)?;
     let view = funcorr::viz::View::parse(&args.view)?;
-    write_colour_transfer(out, &x, &y, &r.map_yx, Some((parse_size(&args.size)?, &view)))?;
+    write_colour_transfer(out, x, y, &r.map_yx, Some((parse_size(&args.size)?, &view)))?;
     outln!("  colour transfer: X.ply, Y.ply (per-vertex colours) and render.png");
     Ok(())
 }
@@ -1599,8 +1628,9 @@ const DEMO_Y: (&str, &[u8]) = ("tr_reg_001.off", include_bytes!("../data/faust/t
 
 fn demo(out: &Path, k: usize) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    // Enough eigenpairs for the default match pipeline.
-    let k = k.max(match_options(&default_match_args()?)?.basis_size());
+    // Enough eigenpairs for the default match pipeline (as many as `funcorr match` computes).
+    let args = default_match_args()?;
+    let k = k.max(match_options(&args)?.basis_size()).max(args.pipe.kprime.unwrap_or(200));
     outln!("funcorr demo: two FAUST humans (same subject, different poses), k = {k} eigenpairs\n");
     let mut shapes: Vec<(TriMesh, Basis)> = Vec::new();
     for (name, bytes) in [DEMO_X, DEMO_Y] {

@@ -74,7 +74,7 @@ impl FaceGradients {
         for (f, &area) in areas.iter().enumerate() {
             let p = mesh.corners(f);
             let nrm = cross(sub(p[1], p[0]), sub(p[2], p[0]));
-            if !(area > 1e-14 * max_area) {
+            if area.is_nan() || area <= 1e-14 * max_area {
                 normals.push([0.0; 3]);
                 weights.push(0.0);
                 hat.push([[0.0; 3]; 3]);

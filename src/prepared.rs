@@ -14,11 +14,12 @@ use crate::shape::{Shape, TriMesh};
 use crate::spectral::{self, Basis, BasisCache, SpectralOptions};
 
 /// Which Laplacian to build.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum LaplacianChoice {
     /// Cotangent for meshes, the point-cloud Laplacian for 3-D point sets, the kNN graph for
     /// other dimensions.
+    #[default]
     Auto,
     /// Cotangent weights and barycentric mass (meshes).
     Cotangent,
@@ -30,12 +31,6 @@ pub enum LaplacianChoice {
     },
     /// The paper's kNN graph (eq. (1)), for any point set.
     Knn(KnnOptions),
-}
-
-impl Default for LaplacianChoice {
-    fn default() -> Self {
-        LaplacianChoice::Auto
-    }
 }
 
 /// The triangles a shape's orientation-aware steps work on: a mesh's own faces, or the local
@@ -147,7 +142,7 @@ pub fn build_laplacian(shape: &Shape, choice: LaplacianChoice) -> Result<(Laplac
         }
         (LaplacianChoice::Cotangent, Shape::Points(_)) => Err(Error::invalid(
             "laplacian",
-            "cotangent weights need a triangle mesh; this shape has no faces (use the point-cloud Laplacian)",
+            "cotan needs a triangle mesh; this shape has no faces (use the point-cloud Laplacian)",
         )),
         (LaplacianChoice::Auto, Shape::Points(p)) if p.dim() != 3 => {
             Ok((laplacian::knn_graph(p, &KnnOptions::default())?, None))

@@ -309,6 +309,7 @@ fn weighted_products(
     (mul(wa.transpose(), aa.as_ref()), mul(wa.transpose(), bb.as_ref()))
 }
 
+#[allow(clippy::too_many_arguments)]
 /// The functional-map step of the bijective refinement: C_yx (k × k) minimizing
 /// ‖Φ C − Π_xy Ψ‖²_{W_X} + w ‖Π_yx Φ C − Ψ‖²_{W_Y} on the samples of both shapes (W the sample
 /// weights): C pulls Y's functions back along π_xy and is inverted by π_yx.

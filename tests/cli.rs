@@ -660,6 +660,8 @@ fn match_data_specs_and_refinements() {
             ys,
             "--data",
             spec,
+            "--method",
+            "fmap",
             "--refine",
             refine,
             "-k",

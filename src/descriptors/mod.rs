@@ -219,27 +219,44 @@ pub fn normalized(d: &Descriptors, mass: &[f64]) -> Result<Descriptors> {
     Descriptors::new(Mat::from_fn(d.n(), d.q(), |i, j| d.values[(i, j)] / norms[j]), d.names.clone())
 }
 
-/// `count` signed (orientation) descriptors from the columns of `d`: the orientation functions
-/// n · (∇f_a × ∇f_b) ([`crate::operators::orientation_function`]) of `count` pairs of columns
-/// (a, b) spread over the columns (a = 7t mod q, b = a + 1 + (3t mod (q − 1)) mod q for t = 0, 1, …),
+/// `count` distinct pairs (a, b) of q descriptors, spread over the columns: a = 7t mod q,
+/// b = a + 1 + (3t mod (q − 1)) mod q for t = 0, 1, … (fewer when q is small).
+pub fn signed_pairs(q: usize, count: usize) -> Vec<(usize, usize)> {
+    let mut pairs = Vec::with_capacity(count);
+    if q < 2 {
+        return pairs;
+    }
+    for t in 0..q * q {
+        if pairs.len() == count {
+            break;
+        }
+        let a = (7 * t) % q;
+        let b = (a + 1 + (3 * t) % (q - 1)) % q;
+        if !pairs.contains(&(a, b)) && !pairs.contains(&(b, a)) {
+            pairs.push((a, b));
+        }
+    }
+    pairs
+}
+
+/// Signed (orientation) descriptors from the columns of `d`: for every pair (a, b), the
+/// orientation function n · (∇f_a × ∇f_b) ([`crate::operators::orientation_function`]),
 /// low-passed to the first `smooth_k` eigenfunctions of `basis` (the product of two gradients is
-/// rough) and normalized ([`normalized`]). Intrinsic descriptors such as the WKS are symmetric
-/// under a shape's left–right symmetry; these change sign under it (and under any
-/// orientation-reversing map), so they tell left from right once the surface is oriented.
-/// Named `signed:a,b`. Errors: fewer than 2 columns, count = 0, sizes that do not match.
+/// rough), not normalized (a pair whose gradients never cross, e.g. the indicators of segments
+/// that do not touch, gives zero). Intrinsic descriptors such as the WKS are symmetric under a
+/// shape's left–right symmetry; these change sign under it (and under any orientation-reversing
+/// map), so they tell left from right once the surface is oriented. Named `signed:a,b`.
+/// Errors: a pair out of range, sizes that do not match.
 pub fn signed(
     d: &Descriptors,
     grads: &crate::operators::FaceGradients,
     basis: &Basis,
-    count: usize,
+    pairs: &[(usize, usize)],
     smooth_k: usize,
 ) -> Result<Descriptors> {
     let (n, q) = (d.n(), d.q());
-    if q < 2 || count == 0 {
-        return Err(Error::invalid(
-            "signed descriptors",
-            format!("need ≥ 2 descriptors and count ≥ 1, got {q} and {count}"),
-        ));
+    if let Some(p) = pairs.iter().find(|p| p.0 >= q || p.1 >= q) {
+        return Err(Error::invalid("signed descriptors", format!("pair {p:?} is out of range (q = {q})")));
     }
     if basis.n() != n || grads.n() != n {
         return Err(Error::invalid(
@@ -249,20 +266,16 @@ pub fn signed(
     }
     let ks = smooth_k.clamp(1, basis.k());
     let phi = basis.eigenvectors.subcols(0, ks);
-    let mut values = Mat::<f64>::zeros(n, count);
-    let mut names = Vec::with_capacity(count);
-    for t in 0..count {
-        let a = (7 * t) % q;
-        let b = (a + 1 + (3 * t) % (q - 1)) % q;
+    let mut values = Mat::<f64>::zeros(n, pairs.len());
+    for (t, &(a, b)) in pairs.iter().enumerate() {
         let h = crate::operators::orientation_function(grads, d.values.col_as_slice(a), d.values.col_as_slice(b))?;
         // Low-pass: Φ Φᵀ A h.
         let coef: Vec<f64> = (0..ks).map(|c| (0..n).map(|i| phi[(i, c)] * basis.mass[i] * h[i]).sum()).collect();
         for i in 0..n {
             values[(i, t)] = (0..ks).map(|c| phi[(i, c)] * coef[c]).sum();
         }
-        names.push(format!("signed:{a},{b}"));
     }
-    normalized(&Descriptors::new(values, names)?, &basis.mass)
+    Descriptors::new(values, pairs.iter().map(|(a, b)| format!("signed:{a},{b}")).collect())
 }
 
 #[cfg(test)]

@@ -523,7 +523,7 @@ fn solve_symmetric(h: MatRef<f64>, rhs: &[f64]) -> Result<Vec<f64>> {
     let hx = mul(h, x.as_ref());
     let res = (&hx - &b).norm_l2();
     let scale = b.norm_l2().max(hx.norm_l2()).max(f64::MIN_POSITIVE);
-    if !(res <= 1e-8 * scale) {
+    if res.is_nan() || res > 1e-8 * scale {
         return Err(Error::numerical(
             "functional map",
             format!("normal equations solved to relative residual {:.1e}", res / scale),

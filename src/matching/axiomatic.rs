@@ -115,26 +115,54 @@ fn samples_of(s: &PreparedShape, count: usize) -> Result<Samples> {
     }
 }
 
-/// The descriptors the energy sees: F normalized, then the signed ones (negated on Y for
-/// orientation-reversing maps, under which they change sign).
+/// The descriptors the energy sees: F and G normalized, then up to `signed` signed descriptors
+/// from the same pairs of columns on both shapes, keeping the pairs that are non-zero on both
+/// (negated on Y for orientation-reversing maps, under which they change sign).
 fn pipeline_data(
-    s: &PreparedShape,
+    x: &PreparedShape,
+    y: &PreparedShape,
     f: &Descriptors,
+    g: &Descriptors,
     p: &AxiomaticPipeline,
-    negate_signed: bool,
-) -> Result<Descriptors> {
-    let base = descriptors::normalized(f, &s.basis.mass)?;
-    if p.signed == 0 || p.fit.orientation == Orientation::Ignore || base.q() < 2 {
-        return Ok(base);
+) -> Result<(Descriptors, Descriptors)> {
+    let (fx, gy) = (descriptors::normalized(f, &x.basis.mass)?, descriptors::normalized(g, &y.basis.mass)?);
+    if fx.q() != gy.q() {
+        return Err(Error::invalid(
+            "data",
+            format!("{} functions on X but {} on Y; they must correspond", fx.q(), gy.q()),
+        ));
     }
-    let Some(grads) = s.gradients() else {
-        return Ok(base);
+    let (Some(grads_x), Some(grads_y)) = (x.gradients(), y.gradients()) else {
+        return Ok((fx, gy));
     };
-    let mut signed = descriptors::signed(&base, grads, &s.basis, p.signed, p.signed_smoothing)?;
-    if negate_signed {
-        signed.values = &signed.values * -1.0;
+    if p.signed == 0 || p.fit.orientation == Orientation::Ignore || fx.q() < 2 {
+        return Ok((fx, gy));
     }
-    base.concat(&signed)
+    // Twice as many candidates as wanted, of which the first usable ones are kept.
+    let pairs = descriptors::signed_pairs(fx.q(), 2 * p.signed);
+    let sx = descriptors::signed(&fx, grads_x, &x.basis, &pairs, p.signed_smoothing)?;
+    let sy = descriptors::signed(&gy, grads_y, &y.basis, &pairs, p.signed_smoothing)?;
+    let norm = |d: &Descriptors, mass: &[f64], j: usize| {
+        d.values.col_as_slice(j).iter().zip(mass).map(|(v, a)| a * v * v).sum::<f64>().sqrt()
+    };
+    let (nx, ny): (Vec<f64>, Vec<f64>) = (
+        (0..pairs.len()).map(|j| norm(&sx, &x.basis.mass, j)).collect(),
+        (0..pairs.len()).map(|j| norm(&sy, &y.basis.mass, j)).collect(),
+    );
+    let (mx, my) = (nx.iter().fold(0.0f64, |a, &b| a.max(b)), ny.iter().fold(0.0f64, |a, &b| a.max(b)));
+    let keep: Vec<usize> =
+        (0..pairs.len()).filter(|&j| nx[j] > 1e-6 * mx && ny[j] > 1e-6 * my).take(p.signed).collect();
+    if keep.is_empty() {
+        return Ok((fx, gy));
+    }
+    let sign = if p.fit.orientation == Orientation::Reverse { -1.0 } else { 1.0 };
+    let pick = |d: &Descriptors, norms: &[f64], s: f64| {
+        Descriptors::new(
+            Mat::from_fn(d.n(), keep.len(), |i, t| s * d.values[(i, keep[t])] / norms[keep[t]]),
+            keep.iter().map(|&j| d.names[j].clone()).collect(),
+        )
+    };
+    Ok((fx.concat(&pick(&sx, &nx, 1.0)?)?, gy.concat(&pick(&sy, &ny, sign)?)?))
 }
 
 /// Runs the default pipeline (module docs) from descriptors F (n × q) on X and G (m × q) on Y.
@@ -163,8 +191,7 @@ pub fn axiomatic_pipeline(
     }
     let mut stages = Vec::new();
     let t = std::time::Instant::now();
-    let reverse = p.fit.orientation == Orientation::Reverse;
-    let (fx, gy) = (pipeline_data(x, f, p, false)?, pipeline_data(y, g, p, reverse)?);
+    let (fx, gy) = pipeline_data(x, y, f, g, p)?;
     let dx = ShapeData { basis: &x.basis, gradients: x.gradients(), descriptors: &fx };
     let dy = ShapeData { basis: &y.basis, gradients: y.gradients(), descriptors: &gy };
     stages.push(("descriptors".to_string(), t.elapsed().as_secs_f64()));
