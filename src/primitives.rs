@@ -86,6 +86,27 @@ pub fn bumpy_sphere(subdivisions: u32) -> TriMesh {
     TriMesh::new(v, s.faces().to_vec()).expect("bumpy sphere is valid")
 }
 
+/// A bumpy sphere with exactly one symmetry, the mirror x → −x (the icosphere's vertices and
+/// triangles are symmetric under it, and the bumps are even in x but break every other
+/// symmetry): intrinsic descriptors cannot tell its left from its right, as on a human body.
+/// Also returns the mirror map (vertex i ↦ the vertex at (−x, y, z)).
+pub fn mirror_symmetric_blob(subdivisions: u32) -> (TriMesh, Vec<usize>) {
+    let s = icosphere(subdivisions);
+    let v: Vec<[f64; 3]> = s
+        .vertices()
+        .iter()
+        .map(|p| {
+            let r = 1.0 + 0.2 * (2.0 * p[1] + 0.3).sin() * p[2].cos() + 0.15 * p[2].powi(3) + 0.25 * p[0] * p[0] * p[1];
+            [1.4 * r * p[0], r * p[1], 0.8 * r * p[2]]
+        })
+        .collect();
+    let key = |p: [f64; 3]| [(p[0] * 1e9).round() as i64, (p[1] * 1e9).round() as i64, (p[2] * 1e9).round() as i64];
+    let index: std::collections::HashMap<[i64; 3], usize> =
+        s.vertices().iter().enumerate().map(|(i, &p)| (key(p), i)).collect();
+    let mirror = s.vertices().iter().map(|p| index[&key([-p[0], p[1], p[2]])]).collect();
+    (TriMesh::new(v, s.faces().to_vec()).expect("the blob is valid"), mirror)
+}
+
 /// Flat rectangle [0, a] × [0, b] in the plane z = 0, triangulated on a regular grid of
 /// nx × ny cells ((nx+1)(ny+1) vertices), each cell split along alternating diagonals.
 pub fn rectangle(a: f64, b: f64, nx: u32, ny: u32) -> TriMesh {

@@ -248,3 +248,107 @@ pub fn axiomatic_pipeline(
     stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
     Ok(AxiomaticResult { map_xy, c_yx, c_fit, candidates, chosen, stages })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::descriptors::signatures::{wks_recipe, WksRecipe};
+    use crate::fmap::axiomatic::spectral_side;
+    use crate::fmap::energy::operator_commutativity;
+    use crate::prepared::LaplacianChoice;
+    use crate::primitives::mirror_symmetric_blob;
+    use crate::shape::Shape;
+
+    /// X, a vertex-permuted copy Y, the true map X → Y and its mirror image.
+    fn pair() -> (PreparedShape, PreparedShape, Vec<usize>, Vec<usize>) {
+        let (x, mirror) = mirror_symmetric_blob(3);
+        let n = x.n_vertices();
+        let perm: Vec<usize> = (0..n).map(|i| (i * 211 + 17) % n).collect(); // X vertex i is Y vertex perm[i]
+        let mut inv = vec![0; n];
+        for (i, &p) in perm.iter().enumerate() {
+            inv[p] = i;
+        }
+        let y = x.permuted(&inv).unwrap();
+        let mirrored: Vec<usize> = (0..n).map(|i| perm[mirror[i]]).collect();
+        let prep =
+            |m: crate::shape::TriMesh| PreparedShape::new(Shape::Mesh(m), LaplacianChoice::Auto, 120, None).unwrap();
+        (prep(x), prep(y), perm, mirrored)
+    }
+
+    fn agreement(a: &[usize], b: &[usize]) -> f64 {
+        a.iter().zip(b).filter(|(p, q)| p == q).count() as f64 / a.len() as f64
+    }
+
+    #[test]
+    fn the_pipeline_finds_the_true_map_not_its_mirror_image() {
+        let (x, y, truth, mirrored) = pair();
+        let r = WksRecipe::default();
+        let (f, g) = (wks_recipe(&x.basis, &r).unwrap(), wks_recipe(&y.basis, &r).unwrap());
+        // The descriptors cannot tell the two maps apart: they are mirror-symmetric.
+        let mut worst = 0.0f64;
+        for j in 0..f.q() {
+            for i in 0..x.n() {
+                worst = worst.max(
+                    (f.values[(i, j)] - g.values[(mirrored[i], j)]).abs()
+                        / f.values.col_as_slice(j).iter().fold(0.0f64, |a, b| a.max(b.abs())),
+                );
+            }
+        }
+        assert!(worst < 1e-6, "descriptors differ between a vertex and its mirror image by {worst}");
+        // The orientation term is lower for the true map than for the mirrored one (both
+        // functional maps exact pull-backs at k = 20).
+        let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
+        let all = refine::Samples::all(&x.basis.mass);
+        let c_true = refine::pullback(phi, psi, &all, &truth, 20, 20).unwrap();
+        let c_mirror = refine::pullback(phi, psi, &all, &mirrored, 20, 20).unwrap();
+        let p = AxiomaticPipeline::default();
+        let (fx, gy) = pipeline_data(&x, &y, &f, &g, &p).unwrap();
+        let sx = spectral_side(
+            &ShapeData { basis: &x.basis, gradients: x.gradients(), descriptors: &fx },
+            20,
+            false,
+            true,
+            true,
+            "X",
+        )
+        .unwrap();
+        let sy = spectral_side(
+            &ShapeData { basis: &y.basis, gradients: y.gradients(), descriptors: &gy },
+            20,
+            false,
+            true,
+            true,
+            "Y",
+        )
+        .unwrap();
+        // C_yx: from Y's operators to X's.
+        let e_true = operator_commutativity(c_true.as_ref(), &sy.orientation, &sx.orientation, 1.0);
+        let e_mirror = operator_commutativity(c_mirror.as_ref(), &sy.orientation, &sx.orientation, 1.0);
+        assert!(e_true < 0.1 * e_mirror, "orientation term: true map {e_true}, mirror image {e_mirror}");
+        // The default pipeline recovers the true permutation; reversed, it finds the mirror.
+        let res = axiomatic_pipeline(&x, &y, &f, &g, &p).unwrap();
+        let (good, bad) = (agreement(&res.map_xy, &truth), agreement(&res.map_xy, &mirrored));
+        assert!(good > 0.95 && bad < 0.1, "recovered {good} of the true map, {bad} of its mirror image");
+        let rev = AxiomaticPipeline { fit: AxiomaticOptions { orientation: Orientation::Reverse, ..p.fit }, ..p };
+        let res = axiomatic_pipeline(&x, &y, &f, &g, &rev).unwrap();
+        let (good, bad) = (agreement(&res.map_xy, &truth), agreement(&res.map_xy, &mirrored));
+        assert!(bad > 0.95 && good < 0.1, "reversed: {bad} of the mirror image, {good} of the true map");
+    }
+
+    #[test]
+    fn bad_options_are_errors() {
+        let (x, y, _, _) = pair();
+        let r = WksRecipe::default();
+        let (f, g) = (wks_recipe(&x.basis, &r).unwrap(), wks_recipe(&y.basis, &r).unwrap());
+        let p = AxiomaticPipeline { candidates: vec![], ..AxiomaticPipeline::default() };
+        assert!(axiomatic_pipeline(&x, &y, &f, &g, &p).is_err());
+        let p = AxiomaticPipeline {
+            refine: ZoomOutSchedule { k_final: 500, step: 5, samples: 0 },
+            ..AxiomaticPipeline::default()
+        };
+        let e = axiomatic_pipeline(&x, &y, &f, &g, &p).unwrap_err().to_string();
+        assert!(e.contains("eigenpairs"), "{e}");
+        let short = Descriptors::new(g.values.subcols(0, 3).to_owned(), g.names[..3].to_vec()).unwrap();
+        assert!(axiomatic_pipeline(&x, &y, &f, &short, &AxiomaticPipeline::default()).is_err());
+    }
+}
