@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""pyFM half of bench/pyfm_side_by_side.sh (run with the benchmark venv's python).
+"""pyFM half of bench/pyfm_side_by_side.sh and bench/pyfm_stages.sh (run with the benchmark venv's python).
 
 Sub-commands:
   env   --out ENV.json [--funcorr-bin PATH]
