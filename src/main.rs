@@ -395,9 +395,16 @@ struct PipelineArgs {
     /// 0 gives the paper's pure form (11).
     #[arg(long, default_value_t = 1e-2)]
     completion_commutativity: f64,
-    /// Size of the leading block of C the completion's commutativity term acts on (0: all k').
+    /// Size of the leading block of C the completion's commutativity term acts on (0: all k');
+    /// also the block of the axiomatic prior (--completion-prior).
     #[arg(long, default_value_t = 50)]
     completion_commutativity_k: usize,
+    /// Weight of the axiomatic prior added to the completion objective (0: off): the energy of
+    /// the axiomatic method without its descriptor term — Laplacian commutativity with --mask,
+    /// descriptor commutativity and orientation with --w-laplacian, --w-commutativity,
+    /// --w-orientation and --orientation — on the leading block of C (subspace form (11) only).
+    #[arg(long, default_value_t = 0.0)]
+    completion_prior: f64,
     /// Initialization of the completion method from the eq. (5) map.
     #[arg(long, value_enum, default_value = "pad")]
     init: InitChoice,
@@ -1196,6 +1203,7 @@ fn pipeline_options(p: &PipelineArgs, method: MethodChoice, rich: bool) -> Resul
     }
     w.mu_comm = p.completion_commutativity;
     w.k_comm = p.completion_commutativity_k;
+    w.mu_prior = p.completion_prior;
     completion.optimize = comp::OptimizeOptions {
         max_iterations: p.max_iterations,
         rel_tol: p.rel_tol,

@@ -63,7 +63,7 @@ pub mod terms;
 pub use objective::{evaluate, value, CompletionParams, Evaluation, LowNorm, Terms};
 // Scaling is defined below.
 pub use optimize::{init_from_c, init_from_svd, optimize, CompletionReport, OptimizeOptions};
-pub use solve::{solve, CompletionOptions, Form, Init, Optimizer, Solution};
+pub use solve::{solve, solve_with_prior, CompletionOptions, Form, Init, Optimizer, Solution};
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
@@ -125,6 +125,10 @@ pub struct Problem {
     /// The factor from this problem's C = A Bᵀ to the functional map between the input bases:
     /// C_bases = `c_scale` · C, with `c_scale` = √(area(Y) / area(X)) ([`Scaling::Unit`]) or 1.
     pub c_scale: f64,
+    /// The optional axiomatic prior's energy ([`terms::prior`], weight
+    /// [`CompletionParams::mu_prior`]): E of [`crate::fmap::energy`] on the leading k_c × k_c block
+    /// of the functional map between the input bases (k_c ≤ k'); set with [`Problem::with_prior`].
+    pub prior: Option<crate::fmap::energy::Energy>,
 }
 
 fn area(mass: &[f64]) -> f64 {
@@ -285,7 +289,27 @@ impl Problem {
             l1_weights_x: None,
             l1_weights_y: None,
             c_scale: 1.0,
+            prior: None,
         })
+    }
+
+    /// This problem with the axiomatic prior `energy` (k_c × k_c, built on the same input bases).
+    /// Errors: a non-square energy or one larger than k'.
+    pub fn with_prior(mut self, energy: crate::fmap::energy::Energy) -> Result<Problem> {
+        let kc = energy.k_x();
+        if energy.k_y() != kc || kc == 0 || kc > self.k_prime() {
+            return Err(Error::invalid(
+                "prior",
+                format!(
+                    "the prior's map must be square and at most k' = {} (got {} × {})",
+                    self.k_prime(),
+                    energy.k_y(),
+                    kc
+                ),
+            ));
+        }
+        self.prior = Some(energy);
+        Ok(self)
     }
 
     /// k', the number of basis functions of each shape.

@@ -34,6 +34,11 @@ pub struct CompletionParams {
     pub mu_comm: f64,
     /// Size k_c of the leading block C_c of C = A Bᵀ the commutativity term acts on (0 = all k').
     pub k_comm: usize,
+    /// Weight of the optional axiomatic prior ([`super::terms::prior`]: the functional-map energy
+    /// of [`crate::fmap::energy`] without its descriptor term, on a leading block of C; 0 = off).
+    /// The energy itself is part of the [`Problem`] ([`Problem::prior`]).
+    #[serde(default)]
+    pub mu_prior: f64,
     /// Norm of the low-norm term.
     pub low_norm: LowNorm,
     /// Rows of T per block of the L1 computation.
@@ -50,6 +55,7 @@ impl Default for CompletionParams {
             xi: 1e-3,
             mu_comm: 0.0,
             k_comm: 0,
+            mu_prior: 0.0,
             low_norm: LowNorm::Euclidean,
             block_rows: 256,
         }
@@ -122,6 +128,7 @@ impl CompletionParams {
             ("mu4", self.mu4),
             ("xi", self.xi),
             ("commutativity", self.mu_comm),
+            ("prior weight", self.mu_prior),
         ];
         for (name, v) in named {
             if !(v.is_finite() && v >= 0.0) {
@@ -150,6 +157,9 @@ pub struct Terms {
     pub low_norm: f64,
     /// μ_c ‖C_c Λ_X − Λ_Y C_c‖².
     pub commutativity: f64,
+    /// μ_p E(s C_c), the axiomatic prior ([`super::terms::prior`]).
+    #[serde(default)]
+    pub prior: f64,
     /// The objective, the sum of the above.
     pub total: f64,
 }
@@ -240,7 +250,16 @@ pub fn evaluate(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b:
         let (lx, ly, kc) = comm_setup(problem, params);
         terms.commutativity = add(params.mu_comm, terms::commutativity(a, b, &lx, &ly, kc));
     }
-    terms.total = terms.data + terms.dirichlet_x + terms.dirichlet_y + terms.l1 + terms.low_norm + terms.commutativity;
+    if let (true, Some(e)) = (params.mu_prior != 0.0, &problem.prior) {
+        terms.prior = add(params.mu_prior, terms::prior(a, b, e, problem.c_scale));
+    }
+    terms.total = terms.data
+        + terms.dirichlet_x
+        + terms.dirichlet_y
+        + terms.l1
+        + terms.low_norm
+        + terms.commutativity
+        + terms.prior;
     Evaluation { terms, grad_a, grad_b }
 }
 
@@ -266,6 +285,9 @@ pub fn gradient_c(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, 
         let (lx, ly, kc) = comm_setup(problem, params);
         t.commutativity = add(params.mu_comm, terms::commutativity_c(c.as_ref(), &lx, &ly, kc));
     }
+    if let (true, Some(e)) = (params.mu_prior != 0.0, &problem.prior) {
+        t.prior = add(params.mu_prior, terms::prior_c(c.as_ref(), e, problem.c_scale));
+    }
     if params.mu3 != 0.0 {
         let l1 = terms::l1_c(
             a,
@@ -278,7 +300,7 @@ pub fn gradient_c(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, 
         );
         t.l1 = add(params.mu3, l1);
     }
-    t.total = t.data + t.dirichlet_x + t.dirichlet_y + t.l1 + t.commutativity;
+    t.total = t.data + t.dirichlet_x + t.dirichlet_y + t.l1 + t.commutativity + t.prior;
     (t, z)
 }
 
@@ -314,7 +336,16 @@ pub fn value(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b: Ma
         let (lx, ly, kc) = comm_setup(problem, params);
         terms.commutativity = params.mu_comm * terms::commutativity(a, b, &lx, &ly, kc).value;
     }
-    terms.total = terms.data + terms.dirichlet_x + terms.dirichlet_y + terms.l1 + terms.low_norm + terms.commutativity;
+    if let (true, Some(e)) = (params.mu_prior != 0.0, &problem.prior) {
+        terms.prior = params.mu_prior * terms::prior(a, b, e, problem.c_scale).value;
+    }
+    terms.total = terms.data
+        + terms.dirichlet_x
+        + terms.dirichlet_y
+        + terms.l1
+        + terms.low_norm
+        + terms.commutativity
+        + terms.prior;
     terms
 }
 
@@ -332,9 +363,25 @@ pub(crate) mod tests {
         Problem::from_coefficients(phi, psi, lx, ly, randn(kp, q, seed + 2), randn(kp, q, seed + 3)).unwrap()
     }
 
+    /// A random axiomatic prior (k_c × k_c, q descriptors): every term of the energy but the
+    /// descriptor term on, with random coefficients and operators.
+    pub(crate) fn random_prior(kc: usize, q: usize, seed: u64) -> crate::fmap::energy::Energy {
+        use crate::fmap::energy::{Energy, EnergyWeights, Mask, Orientation, SpectralSide};
+        let side = |s: u64, shift: f64| SpectralSide {
+            coefficients: randn(kc, q, s),
+            eigenvalues: (0..kc).map(|i| i as f64 * 0.7 + shift).collect(),
+            multiplication: (0..q).map(|p| randn(kc, kc, s + 10 + p as u64)).collect(),
+            orientation: (0..q).map(|p| randn(kc, kc, s + 50 + p as u64)).collect(),
+        };
+        let w = EnergyWeights { descriptors: 0.0, laplacian: 0.3, commutativity: 0.5, orientation: 0.7 };
+        Energy::new(&side(seed, 0.0), &side(seed + 1, 0.05), &w, Mask::Resolvent { gamma: 0.5 }, Orientation::Preserve)
+            .unwrap()
+    }
+
     #[test]
     fn total_gradient_matches_finite_differences() {
-        let p = random_problem(50, 40, 8, 6, 1000);
+        let mut p = random_problem(50, 40, 8, 6, 1000).with_prior(random_prior(6, 3, 77)).unwrap();
+        p.c_scale = 1.3;
         // Weights large enough that every term matters.
         for low_norm in [LowNorm::Euclidean, LowNorm::Mass] {
             let params = CompletionParams {
@@ -345,15 +392,20 @@ pub(crate) mod tests {
                 xi: 1e-2,
                 mu_comm: 0.01,
                 k_comm: 6,
+                mu_prior: 0.05,
                 low_norm,
                 block_rows: 16,
             };
             let (a, b) = (randn(8, 5, 1), randn(8, 5, 2));
             let e = evaluate(&p, &params, a.as_ref(), b.as_ref());
             let t = &e.terms;
-            let sum = t.data + t.dirichlet_x + t.dirichlet_y + t.l1 + t.low_norm + t.commutativity;
+            let sum = t.data + t.dirichlet_x + t.dirichlet_y + t.l1 + t.low_norm + t.commutativity + t.prior;
             assert!((t.total - sum).abs() < 1e-12 * t.total.abs());
-            assert!([t.dirichlet_x, t.dirichlet_y, t.l1, t.low_norm, t.commutativity].iter().all(|&v| v > 0.0));
+            assert!([t.dirichlet_x, t.dirichlet_y, t.l1, t.low_norm, t.commutativity, t.prior]
+                .iter()
+                .all(|&v| v > 0.0));
+            let (tc, _) = gradient_c(&p, &params, a.as_ref(), b.as_ref());
+            assert!((tc.prior - t.prior).abs() < 1e-12 * t.prior);
             let v = value(&p, &params, a.as_ref(), b.as_ref());
             assert!((v.total - t.total).abs() < 1e-12 * t.total);
             let (da, db) = (randn(8, 5, 3), randn(8, 5, 4));
@@ -364,6 +416,23 @@ pub(crate) mod tests {
             let an = dot(&e.grad_a, &da) + dot(&e.grad_b, &db);
             assert!((fd - an).abs() < 1e-5 * an.abs(), "{fd} vs {an}");
         }
+    }
+
+    /// The prior's gradient with respect to C (used by the fixed-rank solvers), by central
+    /// differences, with the block smaller than C and a scale s ≠ 1.
+    #[test]
+    fn prior_gradient_in_c_matches_finite_differences() {
+        let e = random_prior(5, 4, 3);
+        let (c, dc) = (randn(8, 8, 11), randn(8, 8, 12));
+        let (v, g) = terms::prior_c(c.as_ref(), &e, 0.8);
+        assert!(v > 0.0);
+        assert!((5..8).all(|i| (0..8).all(|j| g[(i, j)] == 0.0 && g[(j, i)] == 0.0)));
+        let h = 1e-6;
+        let fd = (terms::prior_c((&c + &dc * h).as_ref(), &e, 0.8).0
+            - terms::prior_c((&c - &dc * h).as_ref(), &e, 0.8).0)
+            / (2.0 * h);
+        let an = dot(&g, &dc);
+        assert!((fd - an).abs() < 1e-6 * an.abs(), "{fd} vs {an}");
     }
 
     #[test]

@@ -230,6 +230,7 @@ mod tests {
             xi: 1e-3,
             mu_comm: 1e-3,
             k_comm: 6,
+            mu_prior: 0.0,
             low_norm: LowNorm::Euclidean,
             block_rows: 16,
         }

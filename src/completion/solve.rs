@@ -171,9 +171,40 @@ pub fn solve(
     c0: MatRef<f64>,
     opts: &CompletionOptions,
 ) -> Result<Solution> {
+    solve_with_prior(bx, by, laplacians, f, g, c0, opts, None)
+}
+
+/// [`solve`] with the optional axiomatic prior `prior` ([`super::terms::prior`], weighted by
+/// [`CompletionParams::mu_prior`]): the functional-map energy on a leading k_c × k_c block of the
+/// map between the input bases, e.g. [`crate::fmap::energy::Energy`] built with the descriptor
+/// weight 0. Only the subspace form (11) has it. Errors: those of [`solve`], a prior with weight 0
+/// or a weight without a prior, a prior larger than k', a prior with another form.
+#[allow(clippy::too_many_arguments)]
+pub fn solve_with_prior(
+    bx: &Basis,
+    by: &Basis,
+    laplacians: Option<(&Laplacian, &Laplacian)>,
+    f: &Descriptors,
+    g: &Descriptors,
+    c0: MatRef<f64>,
+    opts: &CompletionOptions,
+    prior: Option<&crate::fmap::energy::Energy>,
+) -> Result<Solution> {
     check_options(opts, bx, by)?;
+    if prior.is_some() != (opts.params.mu_prior > 0.0) {
+        return Err(Error::invalid(
+            "prior weight",
+            "the axiomatic prior needs both its energy and a weight > 0 (one of them is missing)",
+        ));
+    }
+    if prior.is_some() && opts.form != Form::Subspace {
+        return Err(Error::invalid("form", "the axiomatic prior is implemented for the subspace form (11) only"));
+    }
     let (kp, k) = (opts.k_prime, opts.k);
-    let sub = Problem::new(bx, by, f, g, kp, opts.scaling)?;
+    let mut sub = Problem::new(bx, by, f, g, kp, opts.scaling)?;
+    if let Some(e) = prior {
+        sub = sub.with_prior(e.clone())?;
+    }
     let c0 = sub.c_from_bases(c0);
     let (a0, b0) = match opts.init {
         Init::Pad => init_from_c(c0.as_ref(), kp, k)?,

@@ -94,6 +94,25 @@ pub fn commutativity(a: MatRef<f64>, b: MatRef<f64>, lambda_x: &[f64], lambda_y:
     chain_c(value, g.as_ref(), a, b)
 }
 
+/// Optional axiomatic prior (issue 11), not part of the paper's (11): the functional-map energy
+/// E of [`crate::fmap::energy`] without its descriptor term — Laplacian commutativity (standard or
+/// resolvent mask), descriptor commutativity and orientation — at the leading k_c × k_c block of
+/// the functional map between the input bases, s C_c (s = [`super::Problem::c_scale`]).
+/// ∂/∂C = s ∇E(s C_c) inside the block, 0 outside.
+pub fn prior_c(c: MatRef<f64>, energy: &crate::fmap::energy::Energy, s: f64) -> (f64, Mat<f64>) {
+    let kc = energy.k_x().min(c.nrows()).min(c.ncols());
+    let block = c.submatrix(0, 0, kc, kc).to_owned() * faer::Scale(s);
+    let g_block = energy.gradient(block.as_ref());
+    let g = Mat::from_fn(c.nrows(), c.ncols(), |i, j| if i < kc && j < kc { s * g_block[(i, j)] } else { 0.0 });
+    (energy.value(block.as_ref()), g)
+}
+
+/// [`prior_c`] at C = A Bᵀ, with gradients by the chain rule.
+pub fn prior(a: MatRef<f64>, b: MatRef<f64>, energy: &crate::fmap::energy::Energy, s: f64) -> TermValue {
+    let (value, g) = prior_c(mul(a, b.transpose()).as_ref(), energy, s);
+    chain_c(value, g.as_ref(), a, b)
+}
+
 /// Low-norm term of (11) without its weight: ½ (‖Ψ_k' A‖²_F + ‖Φ_k' B‖²_F).
 ///
 /// The bases are mass-orthonormal, not Euclidean-orthonormal, so with `grams = Some((Φᵀ Φ, Ψᵀ Ψ))`

@@ -180,6 +180,54 @@ pub fn run(
     g: &Descriptors,
     opts: &MatchOptions,
 ) -> Result<MatchResult> {
+    run_with_gradients(bx, by, laplacians, None, f, g, opts)
+}
+
+/// The completion method's optional axiomatic prior ([`completion::solve_with_prior`]) when its
+/// weight `opts.completion.params.mu_prior` is > 0: the energy of the axiomatic fit
+/// (`opts.axiomatic.fit`: Laplacian mask, weights, orientation) without its descriptor term, from
+/// the completion's data F, G, on the leading k_c × k_c block (k_c = `params.k_comm`, all k' when
+/// 0). The orientation term needs the face gradients of both shapes.
+fn completion_prior(
+    bx: &Basis,
+    by: &Basis,
+    gradients: Option<(&crate::operators::FaceGradients, &crate::operators::FaceGradients)>,
+    f: &Descriptors,
+    g: &Descriptors,
+    opts: &MatchOptions,
+) -> Result<Option<crate::fmap::energy::Energy>> {
+    use crate::fmap::axiomatic::{spectral_side, ShapeData};
+    use crate::fmap::energy::{Energy, EnergyWeights, Orientation};
+    let params = &opts.completion.params;
+    if params.mu_prior <= 0.0 {
+        return Ok(None);
+    }
+    let kp = opts.completion.k_prime;
+    let kc = if params.k_comm == 0 { kp } else { params.k_comm.min(kp) };
+    let fit = &opts.axiomatic.fit;
+    let w = EnergyWeights { descriptors: 0.0, ..fit.weights };
+    let orient = w.orientation > 0.0 && fit.orientation != Orientation::Ignore;
+    let (gx, gy) = match gradients {
+        Some((gx, gy)) => (Some(gx), Some(gy)),
+        None => (None, None),
+    };
+    let sx = ShapeData { basis: bx, gradients: gx, descriptors: f };
+    let sy = ShapeData { basis: by, gradients: gy, descriptors: g };
+    let side_x = spectral_side(&sx, kc, w.commutativity > 0.0, orient, fit.unit_gradients, "X")?;
+    let side_y = spectral_side(&sy, kc, w.commutativity > 0.0, orient, fit.unit_gradients, "Y")?;
+    Ok(Some(Energy::new(&side_x, &side_y, &w, fit.mask, fit.orientation)?))
+}
+
+/// [`run`] with the face gradients of both shapes, for the completion method's orientation prior.
+fn run_with_gradients(
+    bx: &Basis,
+    by: &Basis,
+    laplacians: Option<(&Laplacian, &Laplacian)>,
+    gradients: Option<(&crate::operators::FaceGradients, &crate::operators::FaceGradients)>,
+    f: &Descriptors,
+    g: &Descriptors,
+    opts: &MatchOptions,
+) -> Result<MatchResult> {
     let need = opts.basis_size();
     if bx.k() < need || by.k() < need {
         return Err(Error::invalid(
@@ -214,8 +262,9 @@ pub fn run(
             // The start C0 (init_k × init_k) must fit in the k' × k coefficients.
             let init_k = opts.init_k.min(kp).min(opts.completion.k);
             let c0 = timed(&mut stages, "initial map", || fmap::ovsjanikov(bx, by, f, g, init_k, &ovs))?;
+            let prior = timed(&mut stages, "prior", || completion_prior(bx, by, gradients, f, g, opts))?;
             let s = timed(&mut stages, "completion", || {
-                completion::solve(bx, by, laplacians, f, g, c0.as_ref(), &opts.completion)
+                completion::solve_with_prior(bx, by, laplacians, f, g, c0.as_ref(), &opts.completion, prior.as_ref())
             })?;
             let maps = timed(&mut stages, "extraction", || extract(&s, bx, by, opts.extraction))?;
             solver = s.report.clone();
@@ -265,7 +314,15 @@ pub fn run_prepared(
     opts: &MatchOptions,
 ) -> Result<MatchResult> {
     if opts.method != Method::Axiomatic {
-        return run(&x.basis, &y.basis, Some((&x.laplacian, &y.laplacian)), f, g, opts);
+        let orient = opts.method == Method::Completion
+            && opts.completion.params.mu_prior > 0.0
+            && opts.axiomatic.fit.weights.orientation > 0.0
+            && opts.axiomatic.fit.orientation != crate::fmap::energy::Orientation::Ignore;
+        let gradients = match (orient, x.gradients(), y.gradients()) {
+            (true, Some(gx), Some(gy)) => Some((gx, gy)),
+            _ => None,
+        };
+        return run_with_gradients(&x.basis, &y.basis, Some((&x.laplacian, &y.laplacian)), gradients, f, g, opts);
     }
     let r = axiomatic::axiomatic_pipeline(x, y, f, g, &opts.axiomatic)?;
     let mut stages = r.stages;
