@@ -15,7 +15,8 @@
 //! Keys: `k` one candidate size (else `cands=20/30/40/50`), `wd wl wc wo` energy weights,
 //! `mask=std|res`, `orient=p|r|i`, `ug=0|1` unit gradients, `signed=N`, `nd=N` WKS count,
 //! `kd=N` WKS eigenpairs, `ss=N` keep every ss-th WKS, `zo=K` final ZoomOut size (0 none),
-//! `zs=S` its step, `ns=N` its samples, `zp=K` probe size.
+//! `zs=S` its step, `ns=N` its samples, `zp=K` probe size, `bij=W` the bijective ZoomOut with
+//! bijectivity weight W instead of ZoomOut.
 //!
 //! Point clouds: `CLOUD=y` (Y given as its vertices), `CLOUD=both`; `RESAMPLE=N` draws N points
 //! uniformly on the surface instead (vertices not shared). Errors are then measured on Y's mesh
@@ -79,6 +80,7 @@ impl Variant {
                 "zs" => a.refine.step = u(),
                 "ns" => a.refine.samples = u(),
                 "zp" => a.probe.k_final = u(),
+                "bij" => a.bijective = f(),
                 "nd" => nd = u(),
                 "kd" => kd = u(),
                 "ss" => ss = u(),

@@ -53,6 +53,12 @@ pub struct AxiomaticPipeline {
     pub probe: ZoomOutSchedule,
     /// The final refinement (`k_final` 0: none, the map of the chosen functional map).
     pub refine: ZoomOutSchedule,
+    /// Weight of the bijectivity term of the final refinement, > 0: the bijective ZoomOut of
+    /// [`crate::refine::bijective_zoomout`] (Ren, Melzi, Wonka, Ovsjanikov 2021: both point maps
+    /// and both functional maps refined together, `refine.samples` samples on each shape) instead
+    /// of ZoomOut; 0 (the default, chosen by measurement, EXPERIMENTS.md): ZoomOut.
+    #[serde(default)]
+    pub bijective: f64,
 }
 
 impl Default for AxiomaticPipeline {
@@ -68,6 +74,7 @@ impl Default for AxiomaticPipeline {
             signed_smoothing: 50,
             probe: ZoomOutSchedule { k_final: 60, step: 5, samples: 1000 },
             refine: ZoomOutSchedule { k_final: 110, step: 5, samples: 2000 },
+            bijective: 0.0,
         }
     }
 }
@@ -178,6 +185,9 @@ pub fn axiomatic_pipeline(
     if p.candidates.is_empty() || p.candidates.contains(&0) {
         return Err(Error::invalid("candidates", "need at least one functional-map size ≥ 1"));
     }
+    if !(p.bijective.is_finite() && p.bijective >= 0.0) {
+        return Err(Error::invalid("bijectivity weight", format!("must be finite and ≥ 0, got {}", p.bijective)));
+    }
     let need = p.basis_size();
     if x.basis.k() < need || y.basis.k() < need {
         return Err(Error::invalid(
@@ -238,7 +248,17 @@ pub fn axiomatic_pipeline(
     stages.push(("candidate selection".to_string(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
     let c_fit = fits[chosen].clone();
-    let (c_yx, map_xy) = if p.refine.k_final > 0 {
+    let (c_yx, map_xy) = if p.refine.k_final > 0 && p.bijective > 0.0 {
+        let (sx, sy) = (samples_of(x, p.refine.samples)?, samples_of(y, p.refine.samples)?);
+        let o = refine::BijectiveOptions {
+            k_final: p.refine.k_final.max(c_fit.nrows()),
+            step: p.refine.step,
+            bijectivity: p.bijective,
+        };
+        let c_xy0 = c_fit.transpose().to_owned();
+        let (c, m, _) = refine::bijective_zoomout(phi, psi, &sx, &sy, c_fit.as_ref(), c_xy0.as_ref(), &o)?;
+        (c, m)
+    } else if p.refine.k_final > 0 {
         let samples = samples_of(x, p.refine.samples)?;
         let o = ZoomOutOptions { k_final: p.refine.k_final.max(c_fit.nrows()), step: p.refine.step };
         refine::zoomout(phi, psi, &samples, c_fit.as_ref(), &o)?
@@ -388,5 +408,8 @@ mod tests {
         assert!(e.contains("eigenpairs"), "{e}");
         let short = Descriptors::new(g.values.subcols(0, 3).to_owned(), g.names[..3].to_vec()).unwrap();
         assert!(axiomatic_pipeline(&x, &y, &f, &short, &AxiomaticPipeline::default()).is_err());
+        let p = AxiomaticPipeline { bijective: f64::NAN, ..AxiomaticPipeline::default() };
+        let e = axiomatic_pipeline(&x, &y, &f, &g, &p).unwrap_err().to_string();
+        assert!(e.contains("bijectivity"), "{e}");
     }
 }
