@@ -293,6 +293,21 @@ fn orient_normals(points: &[[f64; 3]], nbrs: &[Vec<usize>], normals: &mut [[f64;
     }
 }
 
+impl CloudSurface {
+    /// Area of the surface: the soup's area / 3 (every part of the surface is covered by the fans
+    /// of about three points).
+    pub fn area(&self) -> f64 {
+        self.soup.total_area() / 3.0
+    }
+
+    /// Geodesic distances on the cloud: shortest paths along the edges of its local
+    /// triangulation (Euclidean edge lengths), the cloud counterpart of Dijkstra on mesh edges.
+    /// Overestimates the surface distance by the edge-path detour, like Dijkstra on a mesh.
+    pub fn geodesics(&self) -> Result<crate::geodesic::GraphGeodesics> {
+        crate::geodesic::GraphGeodesics::mesh_edges(&self.soup)
+    }
+}
+
 /// The surface of a point cloud (n × 3): consistently oriented normals and the union of the
 /// local Delaunay fans over K nearest neighbours (module docs). Errors: fewer than K + 1 points,
 /// K < 3, non-finite coordinates, a point whose neighbourhood spans no plane (all its
@@ -400,6 +415,32 @@ mod tests {
             dot(**nrm, [c[0][0] + c[1][0] + c[2][0], c[0][1] + c[1][1] + c[2][1], c[0][2] + c[1][2] + c[2][2]]) > 0.0
         });
         assert_eq!(out.count(), surf.soup.n_faces());
+    }
+
+    /// On a sphere of radius ≈ 1 the cloud's area is close to the mesh's, and its edge-path
+    /// geodesics overestimate the great-circle distance by a few per cent, as Dijkstra on the
+    /// mesh's edges does.
+    #[test]
+    fn cloud_area_and_geodesics_match_the_surface() {
+        use crate::eval::Distances;
+        let s = icosphere(4);
+        let surf = cloud_surface(s.vertices(), DEFAULT_NEIGHBOURS).unwrap();
+        assert!((surf.area() / s.total_area() - 1.0).abs() < 0.05, "{} vs {}", surf.area(), s.total_area());
+        let geo = surf.geodesics().unwrap();
+        let d = geo.distances_from(&[0]).unwrap();
+        let p0 = s.vertices()[0];
+        let r0 = dot(p0, p0).sqrt();
+        let mut worst = 0.0f64;
+        for (j, p) in s.vertices().iter().enumerate().skip(1) {
+            let cos = (dot(p0, *p) / (r0 * dot(*p, *p).sqrt())).clamp(-1.0, 1.0);
+            let great_circle = r0 * cos.acos();
+            if great_circle > 0.5 {
+                let rel = d[(j, 0)] / great_circle - 1.0;
+                assert!(rel > -1e-9, "a path shorter than the great circle at {j}");
+                worst = worst.max(rel);
+            }
+        }
+        assert!(worst < 0.1, "edge paths overestimate by up to {worst}");
     }
 
     #[test]

@@ -1445,10 +1445,33 @@ fn eval(args: &EvalArgs) -> Result<()> {
     use funcorr::eval::{cumulative_curve, hard_errors, standard_thresholds, summarize, GroundTruth};
     use funcorr::io::indices::read_index_list_file;
     let x = Shape::load(&args.source)?;
-    let Shape::Mesh(y) = Shape::load(&args.target)? else {
-        return Err(Error::invalid("--target", "geodesic evaluation needs a triangle mesh"));
+    let target = Shape::load(&args.target)?;
+    let method = funcorr::geodesic::GeodesicMethod::from(args.geodesics);
+    // A point-cloud target: geodesics along the edges of its local triangulation, area of its
+    // surface (funcorr::cloud); a mesh: the chosen geodesics.
+    let cloud = match &target {
+        Shape::Mesh(_) => None,
+        Shape::Points(p) if p.dim() == 3 && p.len() > 3 => {
+            let pts: Vec<[f64; 3]> = (0..p.len()).map(|i| [p.point(i)[0], p.point(i)[1], p.point(i)[2]]).collect();
+            let k = funcorr::cloud::DEFAULT_NEIGHBOURS.min(p.len() - 1);
+            let surface = funcorr::cloud::cloud_surface(&pts, k)
+                .map_err(|e| Error::invalid("--target", format!("{}: {e}", args.target.display())))?;
+            if method != funcorr::geodesic::GeodesicMethod::Dijkstra {
+                eprintln!(
+                    "note: {} is a point cloud: geodesics along the edges of its local triangulation",
+                    args.target.display()
+                );
+            }
+            Some(surface)
+        }
+        Shape::Points(_) => {
+            return Err(Error::invalid(
+                "--target",
+                format!("{}: geodesic evaluation needs a triangle mesh or 3-D points", args.target.display()),
+            ))
+        }
     };
-    let (n, m) = (x.n_vertices(), y.n_vertices());
+    let (n, m) = (x.n_vertices(), target.n_vertices());
     let map = read_index_list_file(&args.map, args.one_based, m)?;
     if map.len() != n {
         return Err(Error::parse(
@@ -1462,15 +1485,21 @@ fn eval(args: &EvalArgs) -> Result<()> {
         y: read_index_list_file(&args.gt_target, true, m)?,
         y_sym: args.gt_target_sym.as_ref().map(|p| read_index_list_file(p, true, m)).transpose()?,
     };
-    let method = funcorr::geodesic::GeodesicMethod::from(args.geodesics);
-    let geo = method.build(&y)?;
-    let errors = hard_errors(&map, &gt, &*geo, y.total_area())?;
+    let (geo, area, description): (Box<dyn funcorr::eval::Distances + Send + Sync + '_>, f64, &str) =
+        match (&target, &cloud) {
+            (Shape::Mesh(y), _) => (method.build(y)?, y.total_area(), method.description()),
+            (_, Some(s)) => {
+                (Box::new(s.geodesics()?), s.area(), "Dijkstra on the edges of the point cloud's local triangulation")
+            }
+            _ => unreachable!("point sets without a surface were rejected above"),
+        };
+    let errors = hard_errors(&map, &gt, &*geo, area)?;
     let s = summarize(&errors);
     let thresholds = standard_thresholds();
     let curve = cumulative_curve(&errors, &thresholds);
     if args.json {
         let v = serde_json::json!({
-            "summary": s, "symmetric": gt.y_sym.is_some(), "geodesics": method.description(),
+            "summary": s, "symmetric": gt.y_sym.is_some(), "geodesics": description,
             "thresholds": thresholds, "curve": curve, "errors": errors,
         });
         outln!("{}", serde_json::to_string_pretty(&v).expect("plain JSON"));
@@ -1481,7 +1510,7 @@ fn eval(args: &EvalArgs) -> Result<()> {
         outln!("≤ 0.05            {:.1}%", 100.0 * s.at_005);
         outln!("≤ 0.10            {:.1}%", 100.0 * s.at_010);
         outln!("≤ 0.25            {:.1}%", 100.0 * s.at_025);
-        outln!("geodesics         {}", method.description());
+        outln!("geodesics         {}", description);
     }
     Ok(())
 }
