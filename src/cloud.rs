@@ -417,9 +417,9 @@ mod tests {
         assert_eq!(out.count(), surf.soup.n_faces());
     }
 
-    /// On a sphere of radius ≈ 1 the cloud's area is close to the mesh's, and its edge-path
-    /// geodesics overestimate the great-circle distance by a few per cent, as Dijkstra on the
-    /// mesh's edges does.
+    /// On the unit sphere the cloud's area is close to the mesh's, and its edge-path geodesics
+    /// are at most 1 % below the great-circle distance and overestimate it no more than Dijkstra
+    /// on the mesh's own edges does.
     #[test]
     fn cloud_area_and_geodesics_match_the_surface() {
         use crate::eval::Distances;
@@ -428,19 +428,24 @@ mod tests {
         assert!((surf.area() / s.total_area() - 1.0).abs() < 0.05, "{} vs {}", surf.area(), s.total_area());
         let geo = surf.geodesics().unwrap();
         let d = geo.distances_from(&[0]).unwrap();
+        let mesh_edges = crate::geodesic::GraphGeodesics::mesh_edges(&s).unwrap().distances_from(&[0]).unwrap();
         let p0 = s.vertices()[0];
         let r0 = dot(p0, p0).sqrt();
-        let mut worst = 0.0f64;
+        let (mut worst, mut worst_mesh) = (0.0f64, 0.0f64);
         for (j, p) in s.vertices().iter().enumerate().skip(1) {
             let cos = (dot(p0, *p) / (r0 * dot(*p, *p).sqrt())).clamp(-1.0, 1.0);
             let great_circle = r0 * cos.acos();
             if great_circle > 0.5 {
+                // Paths of straight chords may undercut the arc slightly (chord/arc ≥ 0.99 for
+                // the fans' edges here).
                 let rel = d[(j, 0)] / great_circle - 1.0;
-                assert!(rel > -1e-9, "a path shorter than the great circle at {j}");
+                assert!(rel > -0.01, "a path {rel} shorter than the great circle at {j}");
                 worst = worst.max(rel);
+                worst_mesh = worst_mesh.max(mesh_edges[(j, 0)] / great_circle - 1.0);
             }
         }
-        assert!(worst < 0.1, "edge paths overestimate by up to {worst}");
+        // The fans have more edges than the mesh: their paths are no worse than the mesh's.
+        assert!(worst <= worst_mesh + 0.01, "cloud paths overestimate by up to {worst}, mesh edges by {worst_mesh}");
     }
 
     #[test]
