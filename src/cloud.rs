@@ -24,7 +24,6 @@
 //! with the mesh's to within the tolerances of the tests (see `tests` and EXPERIMENTS.md).
 
 use std::collections::BinaryHeap;
-use std::num::NonZero;
 
 use rayon::prelude::*;
 
@@ -110,23 +109,7 @@ fn neighbours(points: &[[f64; 3]], k: usize) -> Result<Vec<Vec<usize>>> {
     if k < 3 || k >= n {
         return Err(Error::invalid("neighbours", format!("need 3 ≤ K < n = {n}, got {k}")));
     }
-    let tree: kiddo::ImmutableKdTree<f64, 3> = kiddo::ImmutableKdTree::new_from_slice(points);
-    let want = NonZero::new(k + 1).expect("k + 1 > 0");
-    Ok(points
-        .par_iter()
-        .enumerate()
-        .map(|(i, q)| {
-            let mut nb: Vec<(f64, usize)> = tree
-                .nearest_n::<kiddo::SquaredEuclidean>(q, want)
-                .into_iter()
-                .map(|nn| (nn.distance, nn.item as usize))
-                .filter(|&(_, j)| j != i)
-                .collect();
-            nb.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            nb.truncate(k);
-            nb.into_iter().map(|(_, j)| j).collect()
-        })
-        .collect())
+    Ok(crate::laplacian::knn3(points, k).into_iter().map(|nb| nb.into_iter().map(|(_, j)| j).collect()).collect())
 }
 
 /// PCA normal of point i from its neighbourhood (unit; sign arbitrary).

@@ -288,6 +288,29 @@ pub fn graph(n: usize, edges: &[(usize, usize, f64)], vertex_weights: VertexWeig
     Ok(Laplacian { w: assemble_symmetric(n, entries), mass, kind: LaplacianKind::Graph })
 }
 
+/// The K nearest neighbours of every 3-D point (excluding itself) by a k-d tree (kiddo): for
+/// point i, `K` pairs (squared distance, index), ascending, ties by index. The caller checks
+/// 1 ≤ K < n.
+pub(crate) fn knn3(points: &[[f64; 3]], k: usize) -> Vec<Vec<(f64, usize)>> {
+    let tree: kiddo::ImmutableKdTree<f64, 3> = kiddo::ImmutableKdTree::new_from_slice(points);
+    let want = NonZero::new(k + 1).expect("k + 1 > 0");
+    points
+        .par_iter()
+        .enumerate()
+        .map(|(i, q)| {
+            let mut nb: Vec<(f64, usize)> = tree
+                .nearest_n::<kiddo::SquaredEuclidean>(q, want)
+                .into_iter()
+                .map(|nn| (nn.distance, nn.item as usize))
+                .filter(|&(_, j)| j != i)
+                .collect();
+            nb.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            nb.truncate(k);
+            nb
+        })
+        .collect()
+}
+
 /// The K nearest neighbours of every point (excluding itself): for point i, `K` pairs
 /// (squared distance, index), ascending. Exact.
 ///
@@ -305,22 +328,7 @@ pub fn knn(points: &PointSet, k: usize) -> Result<Vec<Vec<(f64, usize)>>> {
                 [p[0], p[1], p[2]]
             })
             .collect();
-        let tree: kiddo::ImmutableKdTree<f64, 3> = kiddo::ImmutableKdTree::new_from_slice(&pts);
-        let want = NonZero::new(k + 1).expect("k + 1 > 0");
-        pts.par_iter()
-            .enumerate()
-            .map(|(i, q)| {
-                let mut nb: Vec<(f64, usize)> = tree
-                    .nearest_n::<kiddo::SquaredEuclidean>(q, want)
-                    .into_iter()
-                    .map(|nn| (nn.distance, nn.item as usize))
-                    .filter(|&(_, j)| j != i)
-                    .collect();
-                nb.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-                nb.truncate(k);
-                nb
-            })
-            .collect()
+        knn3(&pts, k)
     } else {
         (0..n)
             .into_par_iter()

@@ -222,14 +222,8 @@ pub fn map_of_pullback_with(
     nearest_neighbors(reference.as_ref(), query.as_ref())
 }
 
-/// Options of [`zoomout`].
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct ZoomOutOptions {
-    /// Final size K of the functional map (K × K).
-    pub k_final: usize,
-    /// Size increment per iteration.
-    pub step: usize,
-}
+/// Options of [`zoomout`] (the same as [`crate::pointwise::zoomout`]'s).
+pub use crate::pointwise::ZoomOutOptions;
 
 /// ZoomOut (Melzi et al. 2019) in the pull-back direction, on samples of X: from C_yx (k × k),
 /// alternate the point map on the samples (nearest rows of Ψ_k for the rows of Φ_k C_yx) and

@@ -164,6 +164,13 @@ pub struct Terms {
     pub total: f64,
 }
 
+impl Terms {
+    /// The sum of the weighted terms (what `total` holds).
+    pub fn sum(&self) -> f64 {
+        self.data + self.dirichlet_x + self.dirichlet_y + self.l1 + self.low_norm + self.commutativity + self.prior
+    }
+}
+
 /// Objective value (per term) and gradient at one point.
 #[derive(Clone, Debug)]
 pub struct Evaluation {
@@ -253,13 +260,7 @@ pub fn evaluate(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b:
     if let (true, Some(e)) = (params.mu_prior != 0.0, &problem.prior) {
         terms.prior = add(params.mu_prior, terms::prior(a, b, e, problem.c_scale));
     }
-    terms.total = terms.data
-        + terms.dirichlet_x
-        + terms.dirichlet_y
-        + terms.l1
-        + terms.low_norm
-        + terms.commutativity
-        + terms.prior;
+    terms.total = terms.sum();
     Evaluation { terms, grad_a, grad_b }
 }
 
@@ -300,7 +301,7 @@ pub fn gradient_c(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, 
         );
         t.l1 = add(params.mu3, l1);
     }
-    t.total = t.data + t.dirichlet_x + t.dirichlet_y + t.l1 + t.commutativity + t.prior;
+    t.total = t.sum();
     (t, z)
 }
 
@@ -339,13 +340,7 @@ pub fn value(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b: Ma
     if let (true, Some(e)) = (params.mu_prior != 0.0, &problem.prior) {
         terms.prior = params.mu_prior * terms::prior(a, b, e, problem.c_scale).value;
     }
-    terms.total = terms.data
-        + terms.dirichlet_x
-        + terms.dirichlet_y
-        + terms.l1
-        + terms.low_norm
-        + terms.commutativity
-        + terms.prior;
+    terms.total = terms.sum();
     terms
 }
 
