@@ -118,6 +118,17 @@ fn spectrum_writes_a_valid_basis_and_uses_the_cache() {
     assert!(text(&smaller.stderr).contains("cached basis"));
     let printed: Vec<f64> = text(&smaller.stdout).lines().map(|l| l.parse().unwrap()).collect();
     assert_eq!(printed, b.eigenvalues[..10]);
+    // A stricter tolerance than the cached basis's is not served from the cache.
+    let strict =
+        run(&["spectrum", f.to_str().unwrap(), "-k", "10", "--tol", "1e-11", "--cache-dir", cache.to_str().unwrap()]);
+    assert!(strict.status.success() && !text(&strict.stderr).contains("cached basis"), "{}", text(&strict.stderr));
+    // A cache that cannot be written is a warning: the basis is still computed and printed.
+    let blocked = d.join("not-a-dir");
+    std::fs::write(&blocked, b"a file where the cache directory should be").unwrap();
+    let out = run(&["spectrum", f.to_str().unwrap(), "-k", "10", "--cache-dir", blocked.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("warning: could not write the eigenbasis cache"), "{}", text(&out.stderr));
+    assert_eq!(text(&out.stdout).lines().count(), 10);
     std::fs::remove_dir_all(&d).unwrap();
 }
 

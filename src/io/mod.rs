@@ -20,7 +20,7 @@ mod text;
 
 use std::fs::File;
 use std::io::{BufReader, BufWriter};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use crate::error::{Error, Result};
 
@@ -88,8 +88,8 @@ pub fn read_mesh(path: &Path) -> Result<MeshData> {
 }
 
 /// Writes a mesh, choosing the format from the extension: `off` (ASCII, exact round trip) or
-/// `ply` (binary little endian, `double` coordinates). The file is written to `<path>.tmp` and
-/// then renamed over `path`.
+/// `ply` (binary little endian, `double` coordinates). The file is written whole or not at all
+/// (a temporary file beside it, then a rename; see `write_file`).
 ///
 /// Errors: [`Error::Invalid`] for another extension or an inconsistent mesh (non-finite
 /// coordinate, face index out of range, wrong number of colours), [`Error::Io`] on write failure.
@@ -115,16 +115,36 @@ fn unknown_extension(path: &Path, ext: &str, expected: &str) -> Error {
     Error::invalid("path", format!("{}: unsupported extension '{ext}' (expected {expected})", path.display()))
 }
 
-/// Writes a file through `f` into `<path>.tmp`, then renames it to `path`; the temporary file
-/// is removed on failure.
+/// Writes a file whole or not at all: through `f` into a new temporary file beside `path`
+/// (`.<name>.<pid>-<counter>-<nanos>.tmp`, created exclusively — `O_CREAT | O_EXCL`, so an
+/// existing file or symbolic link of that name is never opened or followed), flushed and
+/// synced to disk, then renamed over `path`. Concurrent writers of the same `path` each use their
+/// own temporary file, so all succeed and the last rename wins with a complete file; on failure
+/// the temporary file is removed and `path` is untouched.
 pub(crate) fn write_file(path: &Path, f: impl FnOnce(&mut BufWriter<File>) -> Result<()>) -> Result<()> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    let tmp = PathBuf::from(tmp);
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let (file, tmp) = {
+        let mut attempt = 0;
+        loop {
+            let nanos =
+                std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.subsec_nanos());
+            let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+            let tmp = dir.join(format!(".{name}.{}-{n}-{nanos}.tmp", std::process::id()));
+            match std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
+                Ok(file) => break (file, tmp),
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && attempt < 100 => attempt += 1,
+                Err(e) => return Err(Error::io(&tmp, e)),
+            }
+        }
+    };
     let res = (|| {
-        let mut w = BufWriter::new(File::create(&tmp).map_err(|e| Error::io(&tmp, e))?);
+        let mut w = BufWriter::new(file);
         f(&mut w)?;
-        w.into_inner().map_err(|e| Error::io(&tmp, e.into_error()))?;
+        let file = w.into_inner().map_err(|e| Error::io(&tmp, e.into_error()))?;
+        file.sync_all().map_err(|e| Error::io(&tmp, e))?;
         std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
     })();
     if res.is_err() {
@@ -258,6 +278,36 @@ mod tests {
         }
     }
 
+    /// No temporary file of the writer is left in `d`.
+    fn no_temporaries(d: &Path) -> bool {
+        std::fs::read_dir(d).unwrap().flatten().all(|e| !e.file_name().to_string_lossy().ends_with(".tmp"))
+    }
+
+    #[test]
+    fn writes_never_follow_links_and_concurrent_writers_all_succeed() {
+        let d = tmp_dir("atomic");
+        // A link at the old predictable temporary name (and at the target's) is not followed.
+        let victim = d.join("victim.txt");
+        std::fs::write(&victim, b"keep me").unwrap();
+        #[cfg(unix)]
+        std::os::unix::fs::symlink(&victim, d.join("a.off.tmp")).unwrap();
+        write_mesh(&d.join("a.off"), &tetra(false)).unwrap();
+        assert_eq!(std::fs::read(&victim).unwrap(), b"keep me");
+        assert_eq!(read_mesh(&d.join("a.off")).unwrap(), tetra(false));
+        // Eight threads writing the same file: every write succeeds, the result is complete.
+        let p = d.join("same.ply");
+        std::thread::scope(|s| {
+            for _ in 0..8 {
+                s.spawn(|| write_mesh(&p, &tetra(true)).unwrap());
+            }
+        });
+        assert_eq!(read_mesh(&p).unwrap(), tetra(true));
+        #[cfg(unix)]
+        std::fs::remove_file(d.join("a.off.tmp")).unwrap();
+        assert!(no_temporaries(&d));
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
     #[test]
     fn write_then_read_mesh_by_extension() {
         let d = tmp_dir("mesh_ext");
@@ -265,7 +315,7 @@ mod tests {
             let p = d.join(name);
             write_mesh(&p, &tetra(colors)).unwrap();
             assert_eq!(read_mesh(&p).unwrap(), tetra(colors), "{name}");
-            assert!(!d.join(format!("{name}.tmp")).exists());
+            assert!(no_temporaries(&d), "{name}");
         }
         let p = d.join("e.obj");
         assert!(matches!(write_mesh(&p, &tetra(false)), Err(Error::Invalid { .. })));
@@ -323,7 +373,7 @@ mod tests {
         let mut m = tetra(true);
         m.colors.as_mut().unwrap().pop();
         assert!(matches!(write_mesh(&d.join("a.ply"), &m), Err(Error::Invalid { .. })));
-        assert!(!d.join("a.ply").exists() && !d.join("a.ply.tmp").exists());
+        assert!(!d.join("a.ply").exists() && no_temporaries(&d));
         std::fs::remove_dir_all(&d).unwrap();
     }
 

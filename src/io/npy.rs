@@ -243,7 +243,7 @@ fn write_npy<T: Serialize + AutoSerialize + Copy>(path: &Path, shape: &[usize], 
 }
 
 /// Writes a matrix as a 2-D `rows × cols` little-endian `f8` `.npy` file in C order
-/// (via `<path>.tmp` and a rename).
+/// (whole or not at all: a temporary file beside it, then a rename).
 ///
 /// Errors: [`Error::Invalid`] when `data.len() != rows * cols`, [`Error::Io`] on write failure.
 pub fn write_npy_matrix(path: &Path, m: &DenseMatrix) -> Result<()> {
@@ -268,7 +268,7 @@ fn zip_error(path: &Path, e: ZipError) -> Error {
 }
 
 /// Writes arrays to an uncompressed `.npz` archive (what `np.savez` writes): member `name.npy`
-/// for each `(name, array)`, little-endian, C order. Written to `<path>.tmp`, then renamed.
+/// for each `(name, array)`, little-endian, C order. Written whole or not at all (a temporary file, then a rename).
 ///
 /// Errors: [`Error::Invalid`] for an empty or repeated name or a shape that does not match the
 /// data length, [`Error::Io`] on write failure.
@@ -335,8 +335,14 @@ pub fn read_npz(path: &Path) -> Result<Vec<(String, NpzArray)>> {
             let msg = format!("expected an uncompressed member as written by np.savez, found zip compression {method:?} (compressed .npz files, e.g. from np.savez_compressed, are unsupported)");
             return Err(Error::parse(&member, None, msg));
         }
-        let f = zip.by_index(i).map_err(|e| zip_error(&member, e))?;
-        out.push((key.to_string(), read_array(f, &member, Some(size.min(len)), false)?));
+        let mut f = zip.by_index(i).map_err(|e| zip_error(&member, e))?;
+        let array = read_array(&mut f, &member, Some(size.min(len)), false)?;
+        // Read the member to its end: the zip reader checks the CRC-32 there, so a flipped bit or
+        // a zeroed hole anywhere in the member is an error, not silently wrong numbers.
+        std::io::copy(&mut f, &mut std::io::sink()).map_err(|e| {
+            Error::parse(&member, None, format!("the member does not match its stored CRC-32 (corrupt archive): {e}"))
+        })?;
+        out.push((key.to_string(), array));
     }
     Ok(out)
 }

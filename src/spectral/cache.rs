@@ -5,7 +5,10 @@
 //!
 //! The cache is keyed by a hash of the Laplacian itself (the bits of W and A), so any two runs
 //! that build the same operator — whatever file, format or options they came from — share the
-//! basis; a cached basis with k' ≥ k eigenpairs serves a request for k by truncation.
+//! basis; a cached basis with k' ≥ k eigenpairs, computed with a tolerance at least as strict as
+//! the request's, serves a request for k by truncation. Entries are
+//! `<key>-tol<tol>-k<K>.npz`; every read checks the archive's CRC-32 and the arrays' shapes, and
+//! anything that fails is a miss (the caller recomputes), never a wrong basis.
 
 use std::path::{Path, PathBuf};
 
@@ -78,7 +81,7 @@ pub fn load_basis(path: &Path) -> Result<Basis> {
     })
 }
 
-/// A directory of cached bases, `<key>-k<K>.npz`.
+/// A directory of cached bases, `<key>-tol<tol>-k<K>.npz`.
 #[derive(Debug, Clone)]
 pub struct BasisCache {
     dir: PathBuf,
@@ -132,32 +135,39 @@ impl BasisCache {
         format!("{:016x}", h.0)
     }
 
-    /// The cached basis for `key` with the fewest eigenpairs k' ≥ k, truncated to k.
-    /// Unreadable or mismatched files are ignored (and recomputed by the caller).
-    pub fn get(&self, key: &str, n: usize, k: usize) -> Option<Basis> {
-        let prefix = format!("{key}-k");
-        let mut best: Option<(usize, PathBuf)> = None;
+    /// The cached basis for `key` with the fewest eigenpairs k' ≥ k among those computed with a
+    /// tolerance ≤ `tol`, truncated to k. Unreadable, corrupt (CRC-32) or mismatched files are
+    /// skipped: the next candidate is tried, and `None` means the caller recomputes.
+    pub fn get(&self, key: &str, n: usize, k: usize, tol: f64) -> Option<Basis> {
+        let prefix = format!("{key}-tol");
+        let mut candidates: Vec<(usize, PathBuf)> = Vec::new();
         for entry in std::fs::read_dir(&self.dir).ok()?.flatten() {
             let name = entry.file_name().to_string_lossy().into_owned();
-            let Some(kk) = name.strip_prefix(&prefix).and_then(|r| r.strip_suffix(".npz")).and_then(|s| s.parse().ok())
+            let Some((t, kk)) = name
+                .strip_prefix(&prefix)
+                .and_then(|r| r.strip_suffix(".npz"))
+                .and_then(|r| r.split_once("-k"))
+                .and_then(|(t, kk)| Some((t.parse::<f64>().ok()?, kk.parse::<usize>().ok()?)))
             else {
                 continue;
             };
-            if kk >= k && best.as_ref().is_none_or(|(b, _)| kk < *b) {
-                best = Some((kk, entry.path()));
+            if kk >= k && t <= tol {
+                candidates.push((kk, entry.path()));
             }
         }
-        let basis = load_basis(&best?.1).ok()?;
-        if basis.n() != n {
-            return None;
-        }
-        basis.truncate(k).ok()
+        candidates.sort();
+        candidates.into_iter().find_map(|(_, path)| {
+            let basis = load_basis(&path).ok()?;
+            (basis.n() == n).then_some(())?;
+            basis.truncate(k).ok()
+        })
     }
 
-    /// Stores `basis` under `key`.
-    pub fn put(&self, key: &str, basis: &Basis) -> Result<()> {
+    /// Stores `basis`, computed with tolerance `tol`, under `key` (whole or not at all; concurrent
+    /// writers of the same entry all succeed).
+    pub fn put(&self, key: &str, basis: &Basis, tol: f64) -> Result<()> {
         std::fs::create_dir_all(&self.dir).map_err(|e| Error::io(&self.dir, e))?;
-        save_basis(&self.dir.join(format!("{key}-k{}.npz", basis.k())), basis)
+        save_basis(&self.dir.join(format!("{key}-tol{tol:e}-k{}.npz", basis.k())), basis)
     }
 }
 
@@ -184,20 +194,51 @@ mod tests {
 
         let cache = BasisCache::new(dir.join("cache"));
         let key = BasisCache::key(&lap);
-        assert!(cache.get(&key, lap.n(), 5).is_none());
-        cache.put(&key, &b).unwrap();
-        let t = cache.get(&key, lap.n(), 5).unwrap();
+        let tol = 1e-8;
+        assert!(cache.get(&key, lap.n(), 5, tol).is_none());
+        cache.put(&key, &b, tol).unwrap();
+        let t = cache.get(&key, lap.n(), 5, tol).unwrap();
         assert_eq!(t.k(), 5);
         assert_eq!(t.eigenvalues[..], b.eigenvalues[..5]);
-        assert!(cache.get(&key, lap.n(), 13).is_none(), "cannot serve more eigenpairs than stored");
-        assert!(cache.get(&key, lap.n() + 1, 5).is_none());
+        assert!(cache.get(&key, lap.n(), 13, tol).is_none(), "cannot serve more eigenpairs than stored");
+        assert!(cache.get(&key, lap.n() + 1, 5, tol).is_none());
+        // The tolerance is part of the entry: a 1e-8 basis serves 1e-5, not 1e-13.
+        assert!(cache.get(&key, lap.n(), 5, 1e-5).is_some());
+        assert!(cache.get(&key, lap.n(), 5, 1e-13).is_none());
         // A different Laplacian has a different key.
         let other = cotangent(&icosphere(1)).unwrap();
         assert_ne!(BasisCache::key(&other), key);
         // A corrupt file is ignored, not an error.
-        std::fs::write(cache.dir().join(format!("{key}-k20.npz")), b"garbage").unwrap();
-        assert!(cache.get(&key, lap.n(), 13).is_none());
-        assert!(load_basis(&cache.dir().join(format!("{key}-k20.npz"))).is_err());
+        std::fs::write(cache.dir().join(format!("{key}-tol1e-8-k20.npz")), b"garbage").unwrap();
+        assert!(cache.get(&key, lap.n(), 13, tol).is_none());
+        assert!(load_basis(&cache.dir().join(format!("{key}-tol1e-8-k20.npz"))).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_corrupt_byte_is_a_miss_and_concurrent_writers_all_succeed() {
+        let lap = cotangent(&icosphere(2)).unwrap();
+        let (b, _) = eigen_basis(&lap, &SpectralOptions::new(12), None).unwrap();
+        let dir = std::env::temp_dir().join(format!("funcorr-cache-crc-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let cache = BasisCache::new(&dir);
+        let key = BasisCache::key(&lap);
+        // Four writers of the same entry at once: all succeed, the entry is complete.
+        std::thread::scope(|s| {
+            for _ in 0..4 {
+                s.spawn(|| cache.put(&key, &b, 1e-8).unwrap());
+            }
+        });
+        let entries: Vec<_> = std::fs::read_dir(&dir).unwrap().flatten().map(|e| e.path()).collect();
+        assert_eq!(entries.len(), 1, "one entry, no temporary files: {entries:?}");
+        assert_eq!(cache.get(&key, lap.n(), 12, 1e-8).unwrap().eigenvectors, b.eigenvectors);
+        // Flip one bit in the middle of the eigenvectors: the CRC-32 no longer matches.
+        let mut bytes = std::fs::read(&entries[0]).unwrap();
+        let mid = bytes.len() / 2;
+        bytes[mid] ^= 0x10;
+        std::fs::write(&entries[0], &bytes).unwrap();
+        assert!(load_basis(&entries[0]).is_err(), "a corrupt basis file is an error");
+        assert!(cache.get(&key, lap.n(), 12, 1e-8).is_none(), "a corrupt entry is a miss");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -189,9 +189,10 @@ pub fn eigen_basis(lap: &Laplacian, opts: &SpectralOptions, progress: Option<Pro
     Ok((Basis { eigenvalues: theta_lambda, eigenvectors: u, mass: lap.mass.clone(), residuals }, info))
 }
 
-/// [`eigen_basis`] through a [`BasisCache`]: returns the cached basis when one with at least k
-/// eigenpairs exists for this Laplacian (then `SolveInfo` is `None`), otherwise computes and
-/// stores it. A failure to write the cache is reported as an error.
+/// [`eigen_basis`] through a [`BasisCache`]: returns the cached basis when an intact one with at
+/// least k eigenpairs, computed with a tolerance ≤ `opts.tol`, exists for this Laplacian (then
+/// `SolveInfo` is `None`), otherwise computes and stores it. A failure to write the cache is a
+/// warning on stderr, not an error.
 pub fn eigen_basis_cached(
     lap: &Laplacian,
     opts: &SpectralOptions,
@@ -200,13 +201,17 @@ pub fn eigen_basis_cached(
 ) -> Result<(Basis, Option<SolveInfo>)> {
     let key = cache.map(|_| BasisCache::key(lap));
     if let (Some(c), Some(key)) = (cache, &key) {
-        if let Some(b) = c.get(key, lap.n(), opts.k) {
+        if let Some(b) = c.get(key, lap.n(), opts.k, opts.tol) {
             return Ok((b, None));
         }
     }
     let (b, info) = eigen_basis(lap, opts, progress)?;
     if let (Some(c), Some(key)) = (cache, &key) {
-        c.put(key, &b)?;
+        // The basis is computed: a cache that cannot be written costs the next run time, not
+        // this run its result.
+        if let Err(e) = c.put(key, &b, opts.tol) {
+            eprintln!("warning: could not write the eigenbasis cache: {e}");
+        }
     }
     Ok((b, Some(info)))
 }
