@@ -160,6 +160,16 @@ pub fn hard_errors(map_xy: &[usize], gt: &GroundTruth, dist: &dyn Distances, are
             direct.iter().zip(mirrored).map(|(a, b)| a.min(b)).collect()
         }
     };
+    if let Some(i) = best.iter().position(|d| !d.is_finite()) {
+        return Err(Error::invalid(
+            "map",
+            format!(
+                "template point {i}: its true vertex {} and the mapped vertex {} of Y are not connected (infinite \
+                 geodesic distance); Y has several connected components — evaluate each component on its own",
+                gt.y[i], map_xy[gt.x[i]]
+            ),
+        ));
+    }
     Ok(best.into_iter().map(|d| d / norm).collect())
 }
 
@@ -230,6 +240,21 @@ mod tests {
     use super::*;
     use crate::geodesic::HeatGeodesics;
     use crate::primitives::icosphere;
+
+    #[test]
+    fn errors_across_components_are_errors_not_infinities() {
+        // Two separate triangles: vertex 0 cannot reach vertex 3.
+        let mesh = crate::shape::TriMesh::new(
+            vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [5.0, 0.0, 0.0], [6.0, 0.0, 0.0], [5.0, 1.0, 0.0]],
+            vec![[0, 1, 2], [3, 4, 5]],
+        )
+        .unwrap();
+        let g = crate::geodesic::GraphGeodesics::mesh_edges(&mesh).unwrap();
+        let gt = GroundTruth { x: vec![0, 1], y: vec![0, 1], y_sym: None };
+        assert!(hard_errors(&[0, 1, 2, 3, 4, 5], &gt, &g, 1.0).unwrap().iter().all(|e| *e == 0.0));
+        let err = hard_errors(&[3, 1, 2, 3, 4, 5], &gt, &g, 1.0).unwrap_err().to_string();
+        assert!(err.contains("not connected"), "{err}");
+    }
 
     #[test]
     fn identity_map_has_zero_error_and_a_full_curve() {

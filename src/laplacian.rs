@@ -382,6 +382,24 @@ pub fn knn_graph(points: &PointSet, opts: &KnnOptions) -> Result<Laplacian> {
     pairs.dedup_by_key(|p| (p.0, p.1));
     let edges: Vec<(usize, usize, f64)> =
         pairs.into_iter().map(|(i, j, d2)| (i, j, (-d2 / (sigma[i] * sigma[j])).exp())).collect();
+    // A bandwidth far below the distances makes every weight underflow to 0: the graph would
+    // have no edges and every eigenvalue 0 — an error, not a silent result.
+    let mut degree = vec![0.0; n];
+    for &(i, j, w) in &edges {
+        degree[i] += w;
+        degree[j] += w;
+    }
+    if let Some(i) = degree.iter().position(|&d| d.is_nan() || d <= 0.0) {
+        let nearest = nbrs[i].first().map_or(0.0, |&(d2, _)| d2.sqrt());
+        return Err(Error::invalid(
+            "sigma",
+            format!(
+                "every kNN weight exp(−d²/σᵢσⱼ) of point {i} underflows to 0 (its nearest neighbour is at {nearest:e}, \
+                 σᵢ = {:e}); use a bandwidth comparable to the distances, or the self-tuning default",
+                sigma[i] / std::f64::consts::SQRT_2
+            ),
+        ));
+    }
     let mut lap = graph(n, &edges, opts.vertex_weights)?;
     lap.kind = LaplacianKind::Knn;
     Ok(lap)
@@ -509,5 +527,10 @@ mod tests {
         let p = PointSet::new(3, 3, vec![0.0; 9]).unwrap();
         assert!(knn_graph(&p, &KnnOptions { k: 2, ..Default::default() }).is_err());
         assert!(knn_graph(&p, &KnnOptions { k: 5, ..Default::default() }).is_err());
+        // A bandwidth far below the distances: every weight underflows, an error naming sigma.
+        let p = PointSet::new(4, 2, vec![0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0]).unwrap();
+        let tiny = KnnOptions { k: 2, bandwidth: Bandwidth::Fixed(1e-300), ..Default::default() };
+        assert!(matches!(knn_graph(&p, &tiny), Err(Error::Invalid { ref what, .. }) if what == "sigma"));
+        assert!(knn_graph(&p, &KnnOptions { k: 2, bandwidth: Bandwidth::Fixed(1.0), ..Default::default() }).is_ok());
     }
 }

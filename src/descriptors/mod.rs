@@ -68,6 +68,9 @@ impl Descriptors {
                 format!("it has {} rows but the shape has {n} vertices", m.rows),
             ));
         }
+        if m.cols == 0 {
+            return Err(Error::invalid("data matrix", format!("it has {n} rows but no columns (no descriptor)")));
+        }
         let values = Mat::from_fn(m.rows, m.cols, |i, j| m.data[i * m.cols + j]);
         Descriptors::new(values, (0..m.cols).map(|j| format!("column:{j}")).collect())
     }
@@ -303,6 +306,8 @@ mod tests {
         let dense = both.to_dense();
         assert_eq!(Descriptors::from_matrix(&dense, 4).unwrap().values, both.values);
         assert!(Descriptors::from_matrix(&dense, 5).is_err());
+        let empty = DenseMatrix { rows: 4, cols: 0, data: vec![] };
+        assert!(Descriptors::from_matrix(&empty, 4).is_err(), "an n × 0 matrix is no descriptor");
         assert!(Descriptors::new(Mat::from_fn(2, 1, |_, _| f64::NAN), vec!["nan".into()]).is_err());
     }
 }
