@@ -7,10 +7,10 @@
 //! The face element is optional (point clouds). ASCII records are one per line.
 
 use std::borrow::Cow;
-use std::io::{Read, Write};
+use std::io::{BufRead, Read, Write};
 use std::path::Path;
 
-use super::text::{clip, parse_tok, LineReader};
+use super::text::{clip, parse_tok, LineReader, MAX_LINE};
 use super::{check_index, check_vertex, color_channel, finish, push_fan, validate_for_write, MeshData};
 use crate::error::{Error, Result};
 
@@ -124,6 +124,8 @@ fn parse_header(data: &[u8], path: &Path) -> Result<Header> {
     let (mut pos, mut ln) = (0, 0);
     let mut binary: Option<Option<bool>> = None;
     let mut elements: Vec<Element> = Vec::new();
+    // Names seen so far: a set, so a header of E element lines costs O(E), not O(E²).
+    let mut names: std::collections::HashSet<String> = std::collections::HashSet::new();
     loop {
         let err = |ln: usize, msg: String| Error::parse(path, Some(ln), msg);
         let Some(len) = data[pos..].iter().position(|&b| b == b'\n') else {
@@ -170,7 +172,7 @@ fn parse_header(data: &[u8], path: &Path) -> Result<Header> {
                 });
             }
             ["element", name, count] => {
-                if elements.iter().any(|e| e.name == *name) {
+                if !names.insert(name.to_string()) {
                     return Err(err(ln, format!("expected unique element names, found a second '{}'", clip(name))));
                 }
                 let count = parse_tok(count, &format!("the count of element '{}'", clip(name)), path, ln)?;
@@ -347,8 +349,31 @@ fn decode(
 /// format or `end_header`; unknown types or keywords; no vertex element or no `x`/`y`/`z`;
 /// counts larger than the data; truncated records; non-finite coordinates; colours out of range;
 /// faces with fewer than 3 vertices or indices outside `0..nv`; data after the last element.
-pub fn read_ply<R: Read>(mut r: R, path: &Path) -> Result<MeshData> {
+pub fn read_ply<R: Read>(r: R, path: &Path) -> Result<MeshData> {
+    // The header line by line, each line and the whole header capped, so that an input without
+    // an end (`ln -s /dev/zero z.ply`) is an error after a few MiB instead of an allocation as
+    // large as memory; then the body, whose counts the header announced.
+    const MAX_HEADER: usize = 64 << 20;
+    let mut r = std::io::BufReader::new(r);
     let mut data = Vec::new();
+    loop {
+        let start = data.len();
+        let n = (&mut r).take(MAX_LINE as u64 + 1).read_until(b'\n', &mut data).map_err(|e| Error::io(path, e))?;
+        if n == 0 {
+            break;
+        }
+        if n > MAX_LINE || data.len() > MAX_HEADER {
+            let msg = format!(
+                "expected a header of lines of at most {} MiB ending with 'end_header' within {} MiB, found none",
+                MAX_LINE >> 20,
+                MAX_HEADER >> 20
+            );
+            return Err(Error::parse(path, None, msg));
+        }
+        if data[start..].trim_ascii() == b"end_header" {
+            break;
+        }
+    }
     r.read_to_end(&mut data).map_err(|e| Error::io(path, e))?;
     let header = parse_header(&data, path)?;
     let hline = Some(header.lines);
@@ -892,5 +917,24 @@ mod tests {
             let h = h.replace("binary_little_endian", "ascii");
             assert!(matches!(read(&ply(&h, &noise(200, seed))), Err(Error::Parse { .. })));
         }
+    }
+
+    #[test]
+    fn endless_input_and_long_headers() {
+        // No end at all (`ln -s /dev/zero z.ply`): an error after the header cap, not OOM.
+        let zeros = std::io::repeat(0).take((MAX_LINE as u64) * 5);
+        let err = read_ply(zeros, Path::new("z.ply")).unwrap_err().to_string();
+        assert!(err.contains("z.ply") && err.contains("end_header"), "{err}");
+        // Many element lines (each name checked for uniqueness in a set): still read, and a
+        // repeated name is still an error.
+        let mut h =
+            String::from("format ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n");
+        for i in 0..20_000 {
+            h += &format!("element e{i} 0\n");
+        }
+        let m = read(&ply(&h, b"0 0 0\n1 0 0\n0 1 0\n")).unwrap();
+        assert_eq!(m.vertices.len(), 3);
+        h += "element e7 0\n";
+        assert!(read(&ply(&h, b"0 0 0\n1 0 0\n0 1 0\n")).unwrap_err().to_string().contains("second 'e7'"));
     }
 }

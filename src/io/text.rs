@@ -1,10 +1,13 @@
 //! Line reader and token parsing shared by the text formats.
 
-use std::io::{BufRead, ErrorKind};
+use std::io::{BufRead, ErrorKind, Read};
 use std::path::Path;
 use std::str::FromStr;
 
 use crate::error::{Error, Result};
+
+/// Longest text line accepted (bytes): far above any mesh, point or matrix row.
+pub(crate) const MAX_LINE: usize = 16 << 20;
 
 /// Reads a text input line by line, strips `#` comments and surrounding whitespace, skips blank
 /// lines, and keeps the 1-based number of the last line read for error messages.
@@ -28,7 +31,13 @@ impl<'p, R: BufRead> LineReader<'p, R> {
     pub fn next_content(&mut self) -> Result<Option<(usize, &str)>> {
         let range = loop {
             self.text.clear();
-            let n = match self.r.read_line(&mut self.text) {
+            // At most MAX_LINE + 1 bytes per line: a file without newlines (or /dev/zero) is an
+            // error after MAX_LINE bytes, not an allocation as large as the input.
+            let n = match (&mut self.r).take(MAX_LINE as u64 + 1).read_line(&mut self.text) {
+                Ok(n) if n > MAX_LINE => {
+                    let msg = format!("expected lines of at most {} MiB, found a longer one", MAX_LINE >> 20);
+                    return Err(Error::parse(self.path, Some(self.line + 1), msg));
+                }
                 Ok(n) => n,
                 Err(e) if e.kind() == ErrorKind::InvalidData => {
                     let msg = "expected UTF-8 text, found invalid bytes (binary data?)";
@@ -81,4 +90,25 @@ pub(crate) fn clip(tok: &str) -> String {
 /// Parses `tok` as a `T`; on failure the message says `expected {what}, found '{tok}'`.
 pub(crate) fn parse_tok<T: FromStr>(tok: &str, what: &str, path: &Path, line: usize) -> Result<T> {
     tok.parse().map_err(|_| Error::parse(path, Some(line), format!("expected {what}, found '{}'", clip(tok))))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_endless_line_is_an_error_not_an_allocation() {
+        let path = Path::new("zeros.off");
+        // MAX_LINE + 2 zero bytes and no newline: what `ln -s /dev/zero z.off` reads.
+        let endless = std::io::BufReader::new(std::io::repeat(0).take(MAX_LINE as u64 + 2));
+        let err = LineReader::new(endless, path, 1).next_content().unwrap_err().to_string();
+        assert!(err.contains("zeros.off") && err.contains("at most 16 MiB"), "{err}");
+        // Lines below the cap read as before.
+        let text = b"OFF\n 3 1 0 # comment\n\n1 2 3\n";
+        let mut r = LineReader::new(&text[..], path, 1);
+        assert_eq!(r.next_content().unwrap(), Some((1, "OFF")));
+        assert_eq!(r.next_content().unwrap(), Some((2, "3 1 0")));
+        assert_eq!(r.next_content().unwrap(), Some((4, "1 2 3")));
+        assert_eq!(r.next_content().unwrap(), None);
+    }
 }
