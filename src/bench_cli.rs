@@ -465,7 +465,7 @@ fn sweep(a: &SterileArgs, what: Sweep) -> Result<()> {
 fn write_sweep(a: &SterileArgs, name: &str, rows: &[SweepRow]) -> Result<()> {
     let write = |file: String, text: String| -> Result<PathBuf> {
         let p = a.output.join(file);
-        std::fs::write(&p, text).map_err(|e| Error::io(&p, e))?;
+        funcorr::io::write_atomic(&p, text)?;
         Ok(p)
     };
     let mut csv = String::from("method,k,mu3,mean_soft_error_x100,seconds,iterations\n");
@@ -593,7 +593,7 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
     funcorr::viz::plot::cumulative_curves(&title, &funcorr::eval::standard_thresholds(), &curves)
         .write_png(&png, 900, 640)?;
     let md = a.output.join("benchmark.md");
-    std::fs::write(&md, format!("# {title}\n\n{table}")).map_err(|e| Error::io(&md, e))?;
+    funcorr::io::write_atomic(&md, format!("# {title}\n\n{table}"))?;
     written.extend([png, md]);
     outln!("{title}\n\n{table}");
     print_written(&written)

@@ -611,7 +611,7 @@ impl Report {
         std::fs::create_dir_all(&maps).map_err(|e| Error::io(&maps, e))?;
         let write = |name: &str, text: String| -> Result<PathBuf> {
             let p = out.join(name);
-            std::fs::write(&p, text).map_err(|e| Error::io(&p, e))?;
+            crate::io::write_atomic(&p, text)?;
             Ok(p)
         };
         let mut written = Vec::new();
@@ -635,7 +635,7 @@ impl Report {
                     );
                     let map: String = s.map_xy.iter().map(|j| format!("{j}\n")).collect();
                     let p = maps.join(format!("{}__{}.{}.txt", r.source, r.target, r.method));
-                    std::fs::write(&p, map).map_err(|e| Error::io(&p, e))?;
+                    crate::io::write_atomic(&p, map)?;
                     json_pairs.push(serde_json::json!({
                         "source": r.source, "target": r.target, "method": r.method, "status": "ok",
                         "q": s.q, "points": s.points, "summary": s.summary, "curve": s.curve,

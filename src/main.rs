@@ -957,7 +957,7 @@ fn descriptors(args: &DescriptorArgs) -> Result<()> {
                 let labels = persistence_labels(&shape, lap(), b(), &args.seg)?;
                 if let Some(p) = &args.write_labels {
                     let text: String = labels.iter().map(|l| format!("{l}\n")).collect();
-                    std::fs::write(p, text).map_err(|e| Error::io(p, e))?;
+                    funcorr::io::write_atomic(p, text)?;
                 }
                 desc::segments(&labels)
             }
@@ -990,7 +990,7 @@ fn descriptors(args: &DescriptorArgs) -> Result<()> {
     st.run("write", || {
         funcorr::io::npy::write_npy_matrix(&args.output, &d.to_dense())?;
         if let Some(p) = &args.names {
-            std::fs::write(p, d.names.join("\n") + "\n").map_err(|e| Error::io(p, e))?;
+            funcorr::io::write_atomic(p, d.names.join("\n") + "\n")?;
         }
         Ok(())
     })?;
@@ -1038,7 +1038,7 @@ fn regions(args: &RegionArgs) -> Result<()> {
             .collect();
         let path = args.output.join("matches.json");
         let text = serde_json::to_string_pretty(&serde_json::json!({ "pairs": list })).expect("plain JSON");
-        std::fs::write(&path, text).map_err(|e| Error::io(&path, e))
+        funcorr::io::write_atomic(&path, text)
     })?;
     st.note(format!("{} matched regions", f.q()));
     st.finish();
@@ -1424,7 +1424,7 @@ fn match_shapes(args: &MatchArgs) -> Result<()> {
             "log": stages,
         });
         let p = out.join("report.json");
-        std::fs::write(&p, serde_json::to_string_pretty(&report).expect("plain JSON")).map_err(|e| Error::io(&p, e))?;
+        funcorr::io::write_atomic(&p, serde_json::to_string_pretty(&report).expect("plain JSON"))?;
         write_colour_transfer(out, x, y, &r.map_yx, (!args.no_render).then_some((size, &view)))
     })?;
     st.note(format!("q {} | C {}×{}", f.q(), r.c.nrows(), r.c.ncols()));
@@ -1437,7 +1437,7 @@ fn write_map_files(out: &Path, map_xy: &[usize], one_based: bool) -> Result<()> 
     let base = usize::from(one_based);
     let text: String = map_xy.iter().map(|j| format!("{}\n", j + base)).collect();
     let p = out.join("map.txt");
-    std::fs::write(&p, text).map_err(|e| Error::io(&p, e))?;
+    funcorr::io::write_atomic(&p, text)?;
     funcorr::io::npy::write_npy_vec_u64(&out.join("map.npy"), &map_xy.iter().map(|&j| j as u64).collect::<Vec<_>>())
 }
 

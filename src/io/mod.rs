@@ -19,7 +19,7 @@ pub mod points;
 mod text;
 
 use std::fs::File;
-use std::io::{BufReader, BufWriter};
+use std::io::{BufReader, BufWriter, Write};
 use std::path::Path;
 
 use crate::error::{Error, Result};
@@ -115,6 +115,14 @@ fn unknown_extension(path: &Path, ext: &str, expected: &str) -> Error {
     Error::invalid("path", format!("{}: unsupported extension '{ext}' (expected {expected})", path.display()))
 }
 
+/// Writes `contents` to `path` whole or not at all: a reader sees the old file or the complete
+/// new one, never a part (a temporary file beside it, synced, then renamed; see `write_file`).
+/// Every output file of the library and the CLI goes through this or `write_file`.
+pub fn write_atomic(path: impl AsRef<Path>, contents: impl AsRef<[u8]>) -> Result<()> {
+    let path = path.as_ref();
+    write_file(path, |w| w.write_all(contents.as_ref()).map_err(|e| Error::io(path, e)))
+}
+
 /// Writes a file whole or not at all: through `f` into a new temporary file beside `path`
 /// (`.<name>.<pid>-<counter>-<nanos>.tmp`, created exclusively — `O_CREAT | O_EXCL`, so an
 /// existing file or symbolic link of that name is never opened or followed), flushed and
@@ -136,15 +144,16 @@ pub(crate) fn write_file(path: &Path, f: impl FnOnce(&mut BufWriter<File>) -> Re
             match std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
                 Ok(file) => break (file, tmp),
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && attempt < 100 => attempt += 1,
-                Err(e) => return Err(Error::io(&tmp, e)),
+                // Errors name the file the user asked for, not our temporary.
+                Err(e) => return Err(Error::io(path, e)),
             }
         }
     };
     let res = (|| {
         let mut w = BufWriter::new(file);
         f(&mut w)?;
-        let file = w.into_inner().map_err(|e| Error::io(&tmp, e.into_error()))?;
-        file.sync_all().map_err(|e| Error::io(&tmp, e))?;
+        let file = w.into_inner().map_err(|e| Error::io(path, e.into_error()))?;
+        file.sync_all().map_err(|e| Error::io(path, e))?;
         std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
     })();
     if res.is_err() {
@@ -281,6 +290,21 @@ mod tests {
     /// No temporary file of the writer is left in `d`.
     fn no_temporaries(d: &Path) -> bool {
         std::fs::read_dir(d).unwrap().flatten().all(|e| !e.file_name().to_string_lossy().ends_with(".tmp"))
+    }
+
+    #[test]
+    fn a_write_that_fails_midway_leaves_the_old_file() {
+        let d = tmp_dir("midway");
+        let p = d.join("map.txt");
+        write_atomic(&p, "old run\n").unwrap();
+        let failed = write_file(&p, |w| {
+            w.write_all(b"first lines of a new run").map_err(|e| Error::io(&p, e))?;
+            Err(Error::invalid("disk", "injected failure"))
+        });
+        assert!(failed.is_err());
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), "old run\n");
+        assert!(no_temporaries(&d));
+        std::fs::remove_dir_all(&d).unwrap();
     }
 
     #[test]

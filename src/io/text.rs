@@ -49,8 +49,11 @@ impl<'p, R: BufRead> LineReader<'p, R> {
                 return Ok(None);
             }
             self.line += 1;
+            // A UTF-8 byte-order mark (as some Windows editors write) is not content.
+            let bom = if self.line == 1 && self.text.starts_with('\u{feff}') { '\u{feff}'.len_utf8() } else { 0 };
             let body = &self.text[..self.text.find('#').unwrap_or(self.text.len())];
-            let start = body.len() - body.trim_start().len();
+            let start = bom.max(body.len() - body.trim_start().len());
+            let start = start + (body[start..].len() - body[start..].trim_start().len());
             let end = body.trim_end().len();
             if start < end {
                 break start..end;
@@ -110,5 +113,10 @@ mod tests {
         assert_eq!(r.next_content().unwrap(), Some((2, "3 1 0")));
         assert_eq!(r.next_content().unwrap(), Some((4, "1 2 3")));
         assert_eq!(r.next_content().unwrap(), None);
+        // A byte-order mark before the first line is skipped.
+        let text = "\u{feff}OFF\n1 2 3\n".as_bytes();
+        let mut r = LineReader::new(text, path, 1);
+        assert_eq!(r.next_content().unwrap(), Some((1, "OFF")));
+        assert_eq!(r.next_content().unwrap(), Some((2, "1 2 3")));
     }
 }

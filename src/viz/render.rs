@@ -17,8 +17,6 @@
 //! band, triangles in index order with the first one drawn winning depth ties. Edges shared by two
 //! triangles are evaluated identically for both, so meshes render without cracks.
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use rayon::prelude::*;
@@ -212,14 +210,15 @@ pub fn write_png(path: &Path, image: &Image) -> Result<()> {
         png::EncodingError::IoError(e) => Error::io(path, e),
         other => Error::invalid("image", format!("PNG encoding of {}: {other}", path.display())),
     };
-    let mut out = BufWriter::new(File::create(path).map_err(|e| Error::io(path, e))?);
-    let mut encoder = png::Encoder::new(&mut out, w, h);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    let mut writer = encoder.write_header().map_err(png_error)?;
-    writer.write_image_data(&image.rgb).map_err(png_error)?;
-    writer.finish().map_err(png_error)?;
-    out.flush().map_err(|e| Error::io(path, e))
+    // Whole or not at all: a run killed while encoding leaves no partial PNG.
+    crate::io::write_file(path, |out| {
+        let mut encoder = png::Encoder::new(out, w, h);
+        encoder.set_color(png::ColorType::Rgb);
+        encoder.set_depth(png::BitDepth::Eight);
+        let mut writer = encoder.write_header().map_err(png_error)?;
+        writer.write_image_data(&image.rgb).map_err(png_error)?;
+        writer.finish().map_err(png_error)
+    })
 }
 
 /// Checks an image size before anything is allocated: width in `min_width`..=[`MAX_SIZE`] (1 for
@@ -816,7 +815,7 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("sphere.png");
         write_png(&path, &img).unwrap();
-        let decoder = png::Decoder::new(std::io::BufReader::new(File::open(&path).unwrap()));
+        let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&path).unwrap()));
         let mut reader = decoder.read_info().unwrap();
         assert_eq!(reader.info().size(), (37, 23));
         let mut data = vec![0; reader.output_buffer_size().unwrap()];
