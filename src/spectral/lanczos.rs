@@ -413,7 +413,7 @@ fn lanczos_run(
             gb
         };
         let gram = gemm_tn(g.as_ref(), g.as_ref());
-        let lambda_ref = (1.0 / theta[k - 1] - shift).abs().max(f64::MIN_POSITIVE);
+        let lambda_ref = super::residual_scale(lap, 1.0 / theta[k - 1] - shift);
         let resid: Vec<f64> = (0..k)
             .map(|i| {
                 let yl = y.submatrix(p - b, i, b, 1);

@@ -82,7 +82,8 @@ pub struct Basis {
     pub eigenvectors: Mat<f64>,
     /// A (length n): the vertex weights the basis is orthonormal for.
     pub mass: Vec<f64>,
-    /// Verified relative residual ‖Wφᵢ − λᵢAφᵢ‖_{A⁻¹} / λ_k of every pair (length k).
+    /// Verified relative residual ‖Wφᵢ − λᵢAφᵢ‖_{A⁻¹} / λ_k of every pair (length k); λ_k is
+    /// floored at 10⁻⁶ · tr(W)/tr(A) when k ≤ the number of connected components.
     pub residuals: Vec<f64>,
 }
 
@@ -216,10 +217,22 @@ pub fn eigen_basis_cached(
     Ok((b, Some(info)))
 }
 
-/// Relative residuals ‖Wφⱼ − λⱼAφⱼ‖_{A⁻¹} / |λ_k| of the columns of Φ (n × k), λ_k the last
-/// (largest) eigenvalue: the measure of [`Basis::residuals`].
+/// The scale residuals are measured against: |λ_k|, but at least 10⁻⁶ · tr(W)/tr(A) (the mean of
+/// the spectrum, times the factor of the solver's shift). Without the floor a request for no
+/// more eigenpairs than the shape has connected components (every λ ≈ 0, e.g. `-k 1`) divides by
+/// ≈ 0 and never converges; with it those pairs are measured against the spectrum's own scale.
+pub(crate) fn residual_scale(lap: &Laplacian, lambda_k: f64) -> f64 {
+    let trace_w: f64 = (0..lap.n()).map(|i| lap.w.as_ref().get(i, i).copied().unwrap_or(0.0)).sum();
+    let trace_a: f64 = lap.mass.iter().sum();
+    let floor = 1e-6 * trace_w / trace_a;
+    lambda_k.abs().max(if floor.is_finite() { floor } else { 0.0 }).max(f64::MIN_POSITIVE)
+}
+
+/// Relative residuals ‖Wφⱼ − λⱼAφⱼ‖_{A⁻¹} / [`residual_scale`] (|λ_k| for every shape with more
+/// connected components than k) of the columns of Φ (n × k), λ_k the last (largest) eigenvalue:
+/// the measure of [`Basis::residuals`].
 pub(crate) fn relative_residuals(lap: &Laplacian, phi: &Mat<f64>, lambda: &[f64]) -> Vec<f64> {
-    let lam_max = lambda.last().copied().unwrap_or(0.0).abs().max(f64::MIN_POSITIVE);
+    let lam_max = residual_scale(lap, lambda.last().copied().unwrap_or(0.0));
     (0..phi.ncols())
         .map(|j| {
             let col = phi.col_as_slice(j);
@@ -454,6 +467,14 @@ mod tests {
             assert!((b.eigenvalues[i] - 2.0).abs() < 0.05, "λ[{i}] = {}", b.eigenvalues[i]);
         }
         assert!(b.eigenvalues[8] > 5.0);
+        // As many eigenpairs as components (every λ ≈ 0), and fewer: the null space, converged.
+        for k in [1, 2] {
+            let b = solve(&lap, k);
+            assert!(b.eigenvalues.iter().all(|l| l.abs() < 1e-8), "k = {k}: {:?}", b.eigenvalues);
+            assert!(b.residuals.iter().all(|r| *r <= 1e-6), "k = {k}: {:?}", b.residuals);
+        }
+        let one = solve(&cotangent(&s).unwrap(), 1);
+        assert!(one.eigenvalues[0].abs() < 1e-8);
     }
 
     #[test]
