@@ -466,14 +466,6 @@ mod tests {
         assert_eq!(out.count(), surf.soup.n_faces());
     }
 
-    /// On the unit sphere the cloud's area is close to the mesh's, and its edge-path geodesics
-    /// are at most 1 % below the great-circle distance and overestimate it no more than Dijkstra
-    /// on the mesh's own edges does.
-    /// A thin part: a flattened sphere whose two faces are closer (0.24) than the radius of
-    /// 30 neighbours (≈ 0.4) but farther than the nearest ring (≈ 0.14). With normals and
-    /// orientation from all 30 neighbours, 12 % of the normals came out reversed (measured
-    /// when this test was written); with the nearest 10 / 6 and the tangent-aware propagation,
-    /// none, and no fan triangle joins the two faces.
     /// Thin parts of a sparse sample: the bundled FAUST shapes (5k vertices) as vertex clouds,
     /// whose hands, feet and limbs are only a few samples across. With normals and orientation
     /// from all 30 neighbours (and Hoppe's cost alone) 17.8 % and 16.0 % of the normals came out
@@ -493,6 +485,9 @@ mod tests {
         assert!(share < 0.10, "{:.1} % of the normals reversed (30-neighbour orientation: 16.9 %)", 100.0 * share);
     }
 
+    /// On the unit sphere the cloud's area is close to the mesh's, and its edge-path geodesics
+    /// are at most 1 % below the great-circle distance and overestimate it no more than Dijkstra
+    /// on the mesh's own edges does.
     #[test]
     fn cloud_area_and_geodesics_match_the_surface() {
         use crate::eval::Distances;

@@ -124,7 +124,7 @@ pub fn write_atomic(path: impl AsRef<Path>, contents: impl AsRef<[u8]>) -> Resul
 }
 
 /// Writes a file whole or not at all: through `f` into a new temporary file beside `path`
-/// (`.<name>.<pid>-<counter>-<nanos>.tmp`, created exclusively — `O_CREAT | O_EXCL`, so an
+/// (`.<name>.<pid>-<counter>.tmp`, created exclusively — `O_CREAT | O_EXCL`, so an
 /// existing file or symbolic link of that name is never opened or followed), flushed and
 /// synced to disk, then renamed over `path`. Concurrent writers of the same `path` each use their
 /// own temporary file, so all succeed and the last rename wins with a complete file; on failure
@@ -137,10 +137,10 @@ pub(crate) fn write_file(path: &Path, f: impl FnOnce(&mut BufWriter<File>) -> Re
     let (file, tmp) = {
         let mut attempt = 0;
         loop {
-            let nanos =
-                std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.subsec_nanos());
+            // Unique among live writers; a stale file of a dead process with the same pid is
+            // skipped by the retry with the next counter value.
             let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-            let tmp = dir.join(format!(".{name}.{}-{n}-{nanos}.tmp", std::process::id()));
+            let tmp = dir.join(format!(".{name}.{}-{n}.tmp", std::process::id()));
             match std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
                 Ok(file) => break (file, tmp),
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && attempt < 100 => attempt += 1,

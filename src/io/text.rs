@@ -51,10 +51,9 @@ impl<'p, R: BufRead> LineReader<'p, R> {
             self.line += 1;
             // A UTF-8 byte-order mark (as some Windows editors write) is not content.
             let bom = if self.line == 1 && self.text.starts_with('\u{feff}') { '\u{feff}'.len_utf8() } else { 0 };
-            let body = &self.text[..self.text.find('#').unwrap_or(self.text.len())];
-            let start = bom.max(body.len() - body.trim_start().len());
-            let start = start + (body[start..].len() - body[start..].trim_start().len());
-            let end = body.trim_end().len();
+            let body = &self.text[bom..self.text.find('#').unwrap_or(self.text.len())];
+            let start = bom + body.len() - body.trim_start().len();
+            let end = bom + body.trim_end().len();
             if start < end {
                 break start..end;
             }

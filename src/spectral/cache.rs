@@ -178,12 +178,18 @@ mod tests {
     use crate::primitives::icosphere;
     use crate::spectral::{eigen_basis, SpectralOptions};
 
-    #[test]
-    fn basis_round_trip_and_cache() {
+    /// The Laplacian of an icosphere, its first 12 eigenpairs and an empty directory `name`.
+    fn sphere_basis_and_dir(name: &str) -> (Laplacian, Basis, PathBuf) {
         let lap = cotangent(&icosphere(2)).unwrap();
         let (b, _) = eigen_basis(&lap, &SpectralOptions::new(12), None).unwrap();
-        let dir = std::env::temp_dir().join(format!("funcorr-cache-test-{}", std::process::id()));
+        let dir = std::env::temp_dir().join(format!("funcorr-{name}-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
+        (lap, b, dir)
+    }
+
+    #[test]
+    fn basis_round_trip_and_cache() {
+        let (lap, b, dir) = sphere_basis_and_dir("cache-test");
         let file = dir.join("b.npz");
         std::fs::create_dir_all(&dir).unwrap();
         save_basis(&file, &b).unwrap();
@@ -217,10 +223,7 @@ mod tests {
 
     #[test]
     fn a_corrupt_byte_is_a_miss_and_concurrent_writers_all_succeed() {
-        let lap = cotangent(&icosphere(2)).unwrap();
-        let (b, _) = eigen_basis(&lap, &SpectralOptions::new(12), None).unwrap();
-        let dir = std::env::temp_dir().join(format!("funcorr-cache-crc-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
+        let (lap, b, dir) = sphere_basis_and_dir("cache-crc");
         let cache = BasisCache::new(&dir);
         let key = BasisCache::key(&lap);
         // Four writers of the same entry at once: all succeed, the entry is complete.

@@ -178,9 +178,7 @@ fn diagonal_positions(lap: &Laplacian) -> Vec<usize> {
 /// matrix safely definite) and grows tenfold if the factorization reports a non-positive pivot.
 fn factor<'a>(lap: &Laplacian, sqrt_m: &'a [f64]) -> Result<(ShiftInvert<'a>, f64)> {
     let diag = diagonal_positions(lap);
-    let trace_w: f64 = diag.iter().map(|&p| lap.w.val()[p]).sum();
-    let trace_a: f64 = lap.mass.iter().sum();
-    let mut s = 1e-6 * trace_w / trace_a;
+    let mut s = super::low_end_scale(lap);
     if !(s.is_finite() && s > 0.0) {
         return Err(Error::invalid("W", "the stiffness matrix has no positive diagonal (no edges?)"));
     }
@@ -366,6 +364,7 @@ fn lanczos_run(
         SolveInfo { method: "block-lanczos".into(), shift, block_size: b, max_basis: pmax, ..Default::default() };
     let mut w = Mat::<f64>::zeros(n, b);
     let mut tol = opts.tol;
+    let floor = super::low_end_scale(lap);
     loop {
         // Expand the Krylov basis up to pmax columns.
         while p < pmax {
@@ -413,7 +412,7 @@ fn lanczos_run(
             gb
         };
         let gram = gemm_tn(g.as_ref(), g.as_ref());
-        let lambda_ref = super::residual_scale(lap, 1.0 / theta[k - 1] - shift);
+        let lambda_ref = super::residual_scale(1.0 / theta[k - 1] - shift, floor);
         let resid: Vec<f64> = (0..k)
             .map(|i| {
                 let yl = y.submatrix(p - b, i, b, 1);

@@ -217,22 +217,28 @@ pub fn eigen_basis_cached(
     Ok((b, Some(info)))
 }
 
-/// The scale residuals are measured against: |λ_k|, but at least 10⁻⁶ · tr(W)/tr(A) (the mean of
-/// the spectrum, times the factor of the solver's shift). Without the floor a request for no
-/// more eigenpairs than the shape has connected components (every λ ≈ 0, e.g. `-k 1`) divides by
-/// ≈ 0 and never converges; with it those pairs are measured against the spectrum's own scale.
-pub(crate) fn residual_scale(lap: &Laplacian, lambda_k: f64) -> f64 {
+/// 10⁻⁶ · tr(W)/tr(A): the mean of the spectrum (tr(W)/tr(A)), scaled far below the eigenvalues
+/// anyone asks for on a shape of more than a few hundred vertices. The block Lanczos solver's
+/// first shift, and the floor of [`residual_scale`].
+pub(crate) fn low_end_scale(lap: &Laplacian) -> f64 {
     let trace_w: f64 = (0..lap.n()).map(|i| lap.w.as_ref().get(i, i).copied().unwrap_or(0.0)).sum();
     let trace_a: f64 = lap.mass.iter().sum();
-    let floor = 1e-6 * trace_w / trace_a;
-    lambda_k.abs().max(if floor.is_finite() { floor } else { 0.0 }).max(f64::MIN_POSITIVE)
+    1e-6 * trace_w / trace_a
+}
+
+/// The scale residuals are measured against: |λ_k|, but at least `floor` =
+/// [`low_end_scale`]. Without the floor a request for no more eigenpairs than the shape has
+/// connected components (every λ ≈ 0, e.g. `-k 1`) divides by ≈ 0 and never converges; with it
+/// those pairs are measured against the spectrum's own scale.
+pub(crate) fn residual_scale(lambda_k: f64, floor: f64) -> f64 {
+    lambda_k.abs().max(floor).max(f64::MIN_POSITIVE)
 }
 
 /// Relative residuals ‖Wφⱼ − λⱼAφⱼ‖_{A⁻¹} / [`residual_scale`] (|λ_k| for every shape with more
 /// connected components than k) of the columns of Φ (n × k), λ_k the last (largest) eigenvalue:
 /// the measure of [`Basis::residuals`].
 pub(crate) fn relative_residuals(lap: &Laplacian, phi: &Mat<f64>, lambda: &[f64]) -> Vec<f64> {
-    let lam_max = residual_scale(lap, lambda.last().copied().unwrap_or(0.0));
+    let lam_max = residual_scale(lambda.last().copied().unwrap_or(0.0), low_end_scale(lap));
     (0..phi.ncols())
         .map(|j| {
             let col = phi.col_as_slice(j);
