@@ -10,6 +10,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use funcorr::benchmark::{self, BenchMethod, BenchOptions, DataSpec, Dataset, Report};
 use funcorr::completion::{CompletionOptions, Form, Scaling};
 use funcorr::experiments::Sterile;
+use funcorr::io::staged::StagedDir;
 use funcorr::viz::plot::{LinePlot, Series};
 use funcorr::{Error, Result};
 
@@ -143,8 +144,11 @@ fn select_pairs(ds: &Dataset, file: Option<&Path>, limit: Option<usize>) -> Resu
     Ok(pairs)
 }
 
-fn print_written(paths: &[PathBuf]) -> Result<()> {
-    for p in paths {
+/// Publishes a staged output directory (see `funcorr::io::staged`) and lists the files written.
+fn publish(staged: StagedDir, paths: &[PathBuf]) -> Result<()> {
+    let finals: Vec<PathBuf> = paths.iter().map(|p| staged.published_path(p)).collect();
+    staged.publish()?;
+    for p in finals {
         outln!("wrote {}", p.display());
     }
     Ok(())
@@ -176,13 +180,14 @@ pub(crate) fn bench(args: &BenchArgs) -> Result<()> {
             if report.symmetric { ", symmetric" } else { "" }
         )
     });
-    let written = report.write(&args.output, &title)?;
+    let staged = StagedDir::create(&args.output)?;
+    let written = report.write(staged.path(), &title).map_err(|e| staged.attribute(e))?;
     outln!("{title} (hard error, {} geodesics; {:.1} s)\n", report.geodesics.name(), report.wall_seconds);
     outln!("{}", report.table());
     for r in report.runs.iter().filter(|r| r.outcome.is_err()) {
         eprintln!("funcorr: {} → {} ({}): {}", r.source, r.target, r.method, r.outcome.as_ref().unwrap_err());
     }
-    print_written(&written)
+    publish(staged, &written)
 }
 
 /// What `funcorr reproduce` runs.
@@ -416,7 +421,7 @@ fn sweep(a: &SterileArgs, what: Sweep) -> Result<()> {
             ("l1", 1e-4)
         }
     };
-    std::fs::create_dir_all(&a.output).map_err(|e| Error::io(&a.output, e))?;
+    let staged = StagedDir::create(&a.output)?;
     let mut rows: Vec<SweepRow> = Vec::new();
     for (method, k, mu3) in jobs {
         let t = Instant::now();
@@ -459,12 +464,12 @@ fn sweep(a: &SterileArgs, what: Sweep) -> Result<()> {
             permutation_correct,
         });
     }
-    write_sweep(a, name, &rows)
+    write_sweep(a, staged, name, &rows)
 }
 
-fn write_sweep(a: &SterileArgs, name: &str, rows: &[SweepRow]) -> Result<()> {
+fn write_sweep(a: &SterileArgs, staged: StagedDir, name: &str, rows: &[SweepRow]) -> Result<()> {
     let write = |file: String, text: String| -> Result<PathBuf> {
-        let p = a.output.join(file);
+        let p = staged.join(file);
         funcorr::io::write_atomic(&p, text)?;
         Ok(p)
     };
@@ -544,7 +549,7 @@ fn write_sweep(a: &SterileArgs, name: &str, rows: &[SweepRow]) -> Result<()> {
         y_range: None,
         series,
     };
-    let png = a.output.join(format!("{name}.png"));
+    let png = staged.join(format!("{name}.png"));
     plot.write_png(&png, 900, 600)?;
     written.push(png);
     outln!("{:<12} {:>5} {:>9} {:>16} {:>9}", "method", "k", "μ3", "soft error ×100", "seconds");
@@ -552,7 +557,7 @@ fn write_sweep(a: &SterileArgs, name: &str, rows: &[SweepRow]) -> Result<()> {
         let mu3 = r.mu3.map(|m| format!("{m:.0e}")).unwrap_or_else(|| "–".into());
         outln!("{:<12} {:>5} {:>9} {:>16.3} {:>9.1}", r.method, r.k, mu3, 100.0 * r.mean_soft_error, r.seconds);
     }
-    print_written(&written)
+    publish(staged, &written)
 }
 
 fn figure7(a: &ReproBenchArgs) -> Result<()> {
@@ -562,6 +567,7 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
     let mut all = Vec::new();
     let mut table = String::new();
     let mut written = Vec::new();
+    let staged = StagedDir::create(&a.output)?;
     for (setting, data) in [("scarce", DataSpec::Segments { symmetric: true }), ("rich", DataSpec::Rich)] {
         // The paper's settings: k' = 350, k = 250 (scarce) and k' = 50, k = 30 (rich) for the
         // completion method, k for the baselines the same, ICP refinement.
@@ -574,7 +580,7 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
             run_benchmark(&ds, &pairs, &a.methods, data, &pipe, true, GeodesicsChoice::Exact, &a.cache, a.quiet)
         })?;
         let title = format!("{setting} data ({data}), {} pairs", pairs.len());
-        written.extend(report.write(&a.output.join(setting), &title)?);
+        written.extend(report.write(&staged.join(setting), &title)?);
         table += &format!("## {title}\n\n{}\n", report.table());
         for m in report.summaries().into_iter().filter(|m| m.pairs > 0) {
             all.push((m, setting));
@@ -589,12 +595,12 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
         })
         .collect();
     let title = format!("Figure 7: {} pairs of {}, symmetric, ICP", pairs.len(), a.dataset.display());
-    let png = a.output.join("benchmark.png");
+    let png = staged.join("benchmark.png");
     funcorr::viz::plot::cumulative_curves(&title, &funcorr::eval::standard_thresholds(), &curves)
         .write_png(&png, 900, 640)?;
-    let md = a.output.join("benchmark.md");
+    let md = staged.join("benchmark.md");
     funcorr::io::write_atomic(&md, format!("# {title}\n\n{table}"))?;
     written.extend([png, md]);
     outln!("{title}\n\n{table}");
-    print_written(&written)
+    publish(staged, &written)
 }

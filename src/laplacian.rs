@@ -145,6 +145,10 @@ pub(crate) fn heron(l: [f64; 3]) -> f64 {
 /// robust-laplacian).
 pub const MOLLIFY_FACTOR: f64 = 1e-6;
 
+/// A mesh whose total area is below this fraction of the area of as many equilateral triangles
+/// of its mean edge length is rejected as flat (collinear or coincident vertices).
+pub const ZERO_AREA_RATIO: f64 = 1e-10;
+
 /// The triangles of `mesh` that have three distinct vertex indices, and their edge lengths
 /// (opposite corners 0, 1, 2) after intrinsic mollification: when some triangle inequality holds
 /// with a slack below ε = [`MOLLIFY_FACTOR`] × mean edge length, the same δ ≥ 0 is added to every
@@ -163,6 +167,21 @@ pub(crate) fn mollified_lengths(mesh: &TriMesh) -> Result<(Vec<usize>, Vec<[f64;
     }
     let lengths: Vec<[f64; 3]> = faces.iter().map(|&f| opposite_lengths(mesh.corners(f))).collect();
     let mean_len = lengths.iter().flatten().sum::<f64>() / (3 * lengths.len()) as f64;
+    // Mollification repairs a few degenerate triangles; it cannot invent a surface. A mesh whose
+    // triangles have (almost) no area in all — every vertex on one line or at one point — is
+    // rejected: relative to equilateral triangles of the mean edge length, below 10⁻¹⁰.
+    let area: f64 = lengths.iter().map(|&l| heron(l)).sum();
+    let reference = lengths.len() as f64 * mean_len * mean_len * 3f64.sqrt() / 4.0;
+    if area.is_nan() || area <= ZERO_AREA_RATIO * reference {
+        return Err(Error::invalid(
+            "mesh",
+            format!(
+                "its {} triangles have zero total area ({area:e}; all vertices on one line or at one point), \
+                 so it has no surface Laplacian; use a point-cloud (kNN) Laplacian for such data",
+                lengths.len()
+            ),
+        ));
+    }
     let eps = MOLLIFY_FACTOR * mean_len;
     let delta = lengths
         .iter()
@@ -420,6 +439,22 @@ mod tests {
             }
         }
         d
+    }
+
+    #[test]
+    fn zero_area_meshes_are_rejected_not_mollified_into_a_surface() {
+        let faces = vec![[0, 1, 2], [1, 2, 3]];
+        let line = TriMesh::new(vec![[0., 0., 0.], [1., 0., 0.], [2., 0., 0.], [3., 0., 0.]], faces.clone()).unwrap();
+        let point = TriMesh::new(vec![[1., 2., 3.]; 4], faces).unwrap();
+        for m in [line, point] {
+            let e = cotangent(&m).unwrap_err().to_string();
+            assert!(e.contains("zero total area"), "{e}");
+        }
+        // One degenerate triangle among good ones is still mollified, not rejected.
+        let mut v = square().vertices().to_vec();
+        v.push([0.5, 0.0, 0.0]);
+        let m = TriMesh::new(v, vec![[0, 1, 2], [0, 2, 3], [0, 4, 1]]).unwrap();
+        assert!(cotangent(&m).is_ok());
     }
 
     #[test]

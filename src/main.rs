@@ -657,13 +657,14 @@ fn persistence_labels(shape: &Shape, lap: &Laplacian, basis: &Basis, args: &Segm
 /// The Laplacian and basis of a shape: read from --basis, or computed (and cached).
 fn shape_basis(
     shape: &Shape,
+    path: &Path,
     lap_args: &LaplacianArgs,
     cache: &CacheArgs,
     k: usize,
     basis_file: Option<&Path>,
     st: &mut Stages,
 ) -> Result<(Laplacian, Basis)> {
-    let lap = st.run("laplacian", || build_laplacian(shape, lap_args))?;
+    let lap = st.run("laplacian", || build_laplacian(shape, path, lap_args))?;
     let basis = match basis_file {
         Some(p) => {
             let b = st.run("read basis", || spectral::load_basis(p))?;
@@ -687,17 +688,15 @@ fn shape_basis(
 /// triangulation), and its basis through the cache.
 fn prepared_shape(
     shape: Shape,
+    path: &Path,
     lap_args: &LaplacianArgs,
     cache: &CacheArgs,
     k: usize,
     st: &mut Stages,
 ) -> Result<funcorr::PreparedShape> {
-    let named = |e: Error| match e {
-        Error::Invalid { what, msg } if what == "laplacian" => Error::invalid("--laplacian", msg),
-        e => e,
-    };
-    let (lap, surface) =
-        st.run("laplacian", || funcorr::prepared::build_laplacian(&shape, laplacian_choice(lap_args)).map_err(named))?;
+    let (lap, surface) = st.run("laplacian", || {
+        funcorr::prepared::build_laplacian(&shape, laplacian_choice(lap_args)).map_err(laplacian_error(path))
+    })?;
     let c = cache.cache();
     let basis =
         st.run("eigenbasis", || spectral::eigen_basis_cached(&lap, &SpectralOptions::new(k), c.as_ref(), None))?.0;
@@ -831,12 +830,20 @@ fn laplacian_choice(args: &LaplacianArgs) -> funcorr::prepared::LaplacianChoice 
     }
 }
 
-fn build_laplacian(shape: &Shape, args: &LaplacianArgs) -> Result<Laplacian> {
-    let named = |e: Error| match e {
+fn build_laplacian(shape: &Shape, path: &Path, args: &LaplacianArgs) -> Result<Laplacian> {
+    Ok(funcorr::prepared::build_laplacian(shape, laplacian_choice(args)).map_err(laplacian_error(path))?.0)
+}
+
+/// Names the option or the file in a Laplacian error: `--laplacian` for a bad choice, the shape's
+/// file for a shape without a Laplacian (zero area, vertices in no triangle, ...).
+fn laplacian_error(path: &Path) -> impl Fn(Error) -> Error + '_ {
+    move |e| match e {
         Error::Invalid { what, msg } if what == "laplacian" => Error::invalid("--laplacian", msg),
+        Error::Invalid { what, msg } if what == "mesh" || what == "point set" => {
+            Error::parse(path, None, format!("invalid {what}: {msg}"))
+        }
         e => e,
-    };
-    Ok(funcorr::prepared::build_laplacian(shape, laplacian_choice(args)).map_err(named)?.0)
+    }
 }
 
 fn progress_bar(k: usize, quiet: bool) -> ProgressBar {
@@ -855,7 +862,7 @@ fn progress_bar(k: usize, quiet: bool) -> ProgressBar {
 fn spectrum(args: &SpectrumArgs) -> Result<()> {
     let mut st = Stages { quiet: args.quiet, parts: vec![] };
     let shape = st.run("read", || Shape::load(&args.shape))?;
-    let lap = st.run("laplacian", || build_laplacian(&shape, &args.lap))?;
+    let lap = st.run("laplacian", || build_laplacian(&shape, &args.shape, &args.lap))?;
     if let Some(p) = &args.save_laplacian {
         st.run("save laplacian", || save_laplacian(p, &lap))?;
     }
@@ -868,7 +875,11 @@ fn spectrum(args: &SpectrumArgs) -> Result<()> {
     let pb = progress_bar(args.k, args.quiet);
     let update = |done: usize, _k: usize| pb.set_position(done as u64);
     let t = Instant::now();
-    let (basis, info) = spectral::eigen_basis_cached(&lap, &opts, cache.as_ref(), Some(&update))?;
+    let (basis, info) =
+        spectral::eigen_basis_cached(&lap, &opts, cache.as_ref(), Some(&update)).map_err(|e| match e {
+            Error::Invalid { what, msg } if what == "block_size" => Error::invalid("--block-size", msg),
+            e => e,
+        })?;
     pb.finish_and_clear();
     match info {
         Some(i) => st.note(format!(
@@ -927,19 +938,22 @@ fn descriptors(args: &DescriptorArgs) -> Result<()> {
     let needs_basis =
         !matches!(args.kind, DescriptorKind::Landmarks | DescriptorKind::Segments | DescriptorKind::Matrix);
     let lb = if needs_basis {
-        Some(shape_basis(&shape, &args.lap, &args.cache, args.k, args.basis.as_deref(), &mut st)?)
+        Some(shape_basis(&shape, &args.shape, &args.lap, &args.cache, args.k, args.basis.as_deref(), &mut st)?)
     } else {
         None
     };
     let basis = lb.as_ref().map(|(_, b)| b);
     let seeds = |path: &Path| indices::read_index_list_file(path, args.one_based, n);
+    let mut computed_labels = None;
     let d = st.run("descriptors", || {
         let b = || basis.expect("basis computed for this kind");
         let lap = || &lb.as_ref().expect("Laplacian computed for this kind").0;
         match args.kind {
             DescriptorKind::Landmarks => {
                 let p = need(&args.landmarks, "--landmarks", "landmarks")?;
-                let pairs = indices::read_index_pairs_file(p, args.one_based, usize::MAX, usize::MAX)?;
+                // Only the chosen side refers to this shape; the other is checked by its own run.
+                let (nx, ny) = if matches!(args.side, Side2::Source) { (n, usize::MAX) } else { (usize::MAX, n) };
+                let pairs = indices::read_index_pairs_file(p, args.one_based, nx, ny)?;
                 let v: Vec<usize> =
                     pairs.iter().map(|&(i, j)| if matches!(args.side, Side2::Source) { i } else { j }).collect();
                 desc::landmarks(n, &v).map_err(|e| Error::parse(p, None, e.to_string()))
@@ -955,11 +969,9 @@ fn descriptors(args: &DescriptorArgs) -> Result<()> {
             }
             DescriptorKind::Persistence => {
                 let labels = persistence_labels(&shape, lap(), b(), &args.seg)?;
-                if let Some(p) = &args.write_labels {
-                    let text: String = labels.iter().map(|l| format!("{l}\n")).collect();
-                    funcorr::io::write_atomic(p, text)?;
-                }
-                desc::segments(&labels)
+                let d = desc::segments(&labels);
+                computed_labels = Some(labels);
+                d
             }
             DescriptorKind::Mser => match &shape {
                 Shape::Mesh(m) => Ok(desc::mser::shape_mser(m, b(), &desc::mser::MserOptions::default())?.1),
@@ -988,11 +1000,17 @@ fn descriptors(args: &DescriptorArgs) -> Result<()> {
         }
     })?;
     st.run("write", || {
-        funcorr::io::npy::write_npy_matrix(&args.output, &d.to_dense())?;
+        // All outputs appear together or none does (io::staged).
+        let mut staged = funcorr::io::staged::StagedFiles::new();
+        staged.write_with(&args.output, |p| funcorr::io::npy::write_npy_matrix(p, &d.to_dense()))?;
         if let Some(p) = &args.names {
-            funcorr::io::write_atomic(p, d.names.join("\n") + "\n")?;
+            staged.write_with(p, |p| funcorr::io::write_atomic(p, d.names.join("\n") + "\n"))?;
         }
-        Ok(())
+        if let (Some(p), Some(labels)) = (&args.write_labels, &computed_labels) {
+            let text: String = labels.iter().map(|l| format!("{l}\n")).collect();
+            staged.write_with(p, |p| funcorr::io::write_atomic(p, text))?;
+        }
+        staged.publish()
     })?;
     st.note(format!("n {} q {}", d.n(), d.q()));
     st.finish();
@@ -1004,8 +1022,8 @@ fn regions(args: &RegionArgs) -> Result<()> {
     let mut st = Stages { quiet: args.quiet, parts: vec![] };
     let x = st.run("read", || Shape::load(&args.x))?;
     let y = st.run("read", || Shape::load(&args.y))?;
-    let (lx, bx) = shape_basis(&x, &args.lap, &args.cache, args.k, None, &mut st)?;
-    let (ly, by) = shape_basis(&y, &args.lap, &args.cache, args.k, None, &mut st)?;
+    let (lx, bx) = shape_basis(&x, &args.x, &args.lap, &args.cache, args.k, None, &mut st)?;
+    let (ly, by) = shape_basis(&y, &args.y, &args.lap, &args.cache, args.k, None, &mut st)?;
     let (f, g, matches) = st.run("regions", || match args.kind {
         RegionKind::Labels => {
             let read = |p: &Option<PathBuf>, flag: &str, n| {
@@ -1030,15 +1048,16 @@ fn regions(args: &RegionArgs) -> Result<()> {
         },
     })?;
     st.run("write", || {
-        std::fs::create_dir_all(&args.output).map_err(|e| Error::io(&args.output, e))?;
-        funcorr::io::npy::write_npy_matrix(&args.output.join("F.npy"), &f.to_dense())?;
-        funcorr::io::npy::write_npy_matrix(&args.output.join("G.npy"), &g.to_dense())?;
-        let list: Vec<serde_json::Value> = (0..f.q())
-            .map(|j| serde_json::json!({"x": f.names[j], "y": g.names[j], "cost": matches.get(j).map(|m| m.cost)}))
-            .collect();
-        let path = args.output.join("matches.json");
-        let text = serde_json::to_string_pretty(&serde_json::json!({ "pairs": list })).expect("plain JSON");
-        funcorr::io::write_atomic(&path, text)
+        funcorr::io::staged::StagedDir::create(&args.output)?.write_with(|out| {
+            funcorr::io::npy::write_npy_matrix(&out.join("F.npy"), &f.to_dense())?;
+            funcorr::io::npy::write_npy_matrix(&out.join("G.npy"), &g.to_dense())?;
+            let list: Vec<serde_json::Value> = (0..f.q())
+                .map(|j| serde_json::json!({"x": f.names[j], "y": g.names[j], "cost": matches.get(j).map(|m| m.cost)}))
+                .collect();
+            let path = out.join("matches.json");
+            let text = serde_json::to_string_pretty(&serde_json::json!({ "pairs": list })).expect("plain JSON");
+            funcorr::io::write_atomic(&path, text)
+        })
     })?;
     st.note(format!("{} matched regions", f.q()));
     st.finish();
@@ -1052,20 +1071,9 @@ fn pair_data(
     (y, ly, by): (&Shape, &Laplacian, &Basis),
     seg: &SegmentationArgs,
 ) -> Result<(funcorr::descriptors::Descriptors, funcorr::descriptors::Descriptors)> {
+    use funcorr::descriptors::spec::PairDataSpec as P;
     use funcorr::descriptors::{self as desc, persistence as pers, signatures as sig};
-    let (kind, arg) = spec.split_once(':').unwrap_or((spec, ""));
     let bad = |msg: String| Error::invalid("--data", format!("'{spec}': {msg}"));
-    // `wks`, `hks`, `wks+hks` without a count (and without a colon): DEFAULT_COUNT functions.
-    let count = || {
-        if !spec.contains(':') {
-            return Ok(sig::DEFAULT_COUNT);
-        }
-        arg.parse::<usize>().map_err(|_| bad(format!("expected a count after the colon, e.g. {kind}:100, or none")))
-    };
-    let two_paths = || -> Result<(PathBuf, PathBuf)> {
-        let (a, b) = arg.split_once(',').ok_or_else(|| bad("expected two files separated by a comma".into()))?;
-        Ok((PathBuf::from(a), PathBuf::from(b)))
-    };
     let sigs = |b: &Basis, wks: bool, hks: bool, n: usize| -> Result<desc::Descriptors> {
         let w = if wks { Some(sig::wks(b, n, true)?) } else { None };
         let h = if hks { Some(sig::hks(b, &sig::hks_times(b, n)?, true)?) } else { None };
@@ -1076,41 +1084,36 @@ fn pair_data(
             (None, None) => unreachable!("at least one signature"),
         }
     };
-    match kind {
-        "wks" if !spec.contains(':') => {
+    let segments = |a: &Path, b: &Path| {
+        let la = funcorr::io::indices::read_labels_file(a, x.n_vertices())?;
+        let lb = funcorr::io::indices::read_labels_file(b, y.n_vertices())?;
+        // Labels agree between the files: keep the labels present on both, in order.
+        desc::matched_segments(&la, &lb).map_err(|e| bad(e.to_string()))
+    };
+    let persistence = || -> Result<_> {
+        let a = persistence_labels(x, lx, bx, seg)?;
+        let b = persistence_labels(y, ly, by, seg)?;
+        let (f, g, _) = pers::matched_segment_indicators(&a, bx, &b, by)?;
+        Ok((f, g))
+    };
+    match spec.parse::<P>()? {
+        P::WksRecipe => {
             let r = sig::WksRecipe::default();
             Ok((sig::wks_recipe(bx, &r)?, sig::wks_recipe(by, &r)?))
         }
-        "wks" => Ok((sigs(bx, true, false, count()?)?, sigs(by, true, false, count()?)?)),
-        "hks" => Ok((sigs(bx, false, true, count()?)?, sigs(by, false, true, count()?)?)),
-        "wks+hks" => Ok((sigs(bx, true, true, count()?)?, sigs(by, true, true, count()?)?)),
-        "segments" => {
-            let (a, b) = two_paths()?;
-            let la = funcorr::io::indices::read_labels_file(&a, x.n_vertices())?;
-            let lb = funcorr::io::indices::read_labels_file(&b, y.n_vertices())?;
-            // Labels agree between the files: keep the labels present on both, in order.
-            desc::matched_segments(&la, &lb).map_err(|e| bad(e.to_string()))
-        }
-        "persistence" => {
-            let a = persistence_labels(x, lx, bx, seg)?;
-            let b = persistence_labels(y, ly, by, seg)?;
-            let (f, g, _) = pers::matched_segment_indicators(&a, bx, &b, by)?;
-            Ok((f, g))
-        }
-        "rich" => {
+        P::Signatures { wks, hks, count } => Ok((sigs(bx, wks, hks, count)?, sigs(by, wks, hks, count)?)),
+        P::Segments(a, b) => segments(&a, &b),
+        P::Persistence => persistence(),
+        P::Rich(files) => {
             // Segments: given label files (matched by label) or persistence segments (matched
             // by signature); then 100 WKS + 100 HKM localized on them.
-            let (fs, gs) = if arg.is_empty() {
-                let a = persistence_labels(x, lx, bx, seg)?;
-                let b = persistence_labels(y, ly, by, seg)?;
-                let (f, g, _) = pers::matched_segment_indicators(&a, bx, &b, by)?;
-                (f, g)
-            } else {
-                pair_data(&format!("segments:{arg}"), (x, lx, bx), (y, ly, by), seg)?
+            let (fs, gs) = match files {
+                None => persistence()?,
+                Some((a, b)) => segments(&a, &b)?,
             };
             desc::rich(bx, by, &fs, &gs, 100, 100)
         }
-        "mser" => match (x, y) {
+        P::Mser => match (x, y) {
             (Shape::Mesh(mx), Shape::Mesh(my)) => {
                 let (f, g, _) =
                     desc::mser::matched_mser_indicators((mx, bx), (my, by), &desc::mser::MserOptions::default())?;
@@ -1118,21 +1121,16 @@ fn pair_data(
             }
             _ => Err(bad("mser needs two triangle meshes".into())),
         },
-        "landmarks" => {
-            let pairs =
-                funcorr::io::indices::read_index_pairs_file(Path::new(arg), false, x.n_vertices(), y.n_vertices())?;
+        P::Landmarks(file) => {
+            let pairs = funcorr::io::indices::read_index_pairs_file(&file, false, x.n_vertices(), y.n_vertices())?;
             let (a, b): (Vec<usize>, Vec<usize>) = pairs.into_iter().unzip();
             Ok((desc::landmarks(x.n_vertices(), &a)?, desc::landmarks(y.n_vertices(), &b)?))
         }
-        "matrix" => {
-            let (a, b) = two_paths()?;
+        P::Matrix(a, b) => {
             let f = desc::Descriptors::from_matrix(&funcorr::io::read_matrix(&a)?, x.n_vertices())?;
             let g = desc::Descriptors::from_matrix(&funcorr::io::read_matrix(&b)?, y.n_vertices())?;
             Ok((f, g))
         }
-        _ => Err(bad("unknown kind (wks:N, hks:N, wks+hks:N, segments:A,B, persistence, mser, landmarks:F, rich, \
-                     rich:A,B, matrix:F,G)"
-            .into())),
     }
 }
 
@@ -1153,8 +1151,7 @@ fn mesh_data(shape: &Shape) -> Option<funcorr::io::MeshData> {
 
 /// Whether a `--data` spec is the paper's rich setting (many functions) rather than scarce data.
 fn is_rich(spec: &str) -> bool {
-    let kind = spec.split_once(':').map_or(spec, |(k, _)| k);
-    matches!(kind, "wks" | "hks" | "wks+hks" | "rich" | "matrix")
+    spec.parse::<funcorr::descriptors::spec::PairDataSpec>().is_ok_and(|s| s.is_rich())
 }
 
 /// The library options of a pipeline (defaults per method and data, see `--help`).
@@ -1178,6 +1175,24 @@ fn pipeline_options(p: &PipelineArgs, method: MethodChoice, rich: bool) -> Resul
     }
     if let Some(kp) = p.kprime {
         completion.k_prime = kp;
+    }
+    if method == MethodChoice::Completion && !(1..=completion.k_prime).contains(&completion.k) {
+        let (k, kp) = (completion.k, completion.k_prime);
+        let src = |given: bool, flag: &str, v: usize| {
+            if given {
+                format!("{flag} {v}")
+            } else {
+                format!("{flag} (default {v})")
+            }
+        };
+        return Err(Error::invalid(
+            if p.k.is_some() { "-k" } else { "--kprime" },
+            format!(
+                "the completion rank {} must be between 1 and the subspace size {}",
+                src(p.k.is_some(), "-k", k),
+                src(p.kprime.is_some(), "--kprime", kp)
+            ),
+        ));
     }
     completion.init = match p.init {
         InitChoice::Pad => Init::Pad,
@@ -1305,6 +1320,57 @@ fn pipeline_options(p: &PipelineArgs, method: MethodChoice, rich: bool) -> Resul
     })
 }
 
+/// The eigenpairs per shape that `funcorr match` computes, and the option that asks for the
+/// most of them (e.g. "--zoomout-to (default 150)"), so that a shape with too few vertices gets
+/// an error naming the option to change. Errors when --kprime is given but smaller than what
+/// the other options need (the basis would silently be larger than asked).
+fn basis_demand(p: &PipelineArgs, opts: &funcorr::matching::MatchOptions) -> Result<(usize, String)> {
+    use funcorr::matching::{Method, Refine as R};
+    let named = |given: bool, flag: &str, v: usize| {
+        if given {
+            format!("{flag} {v}")
+        } else {
+            format!("{flag} (default {v})")
+        }
+    };
+    let mut parts: Vec<(usize, String)> = Vec::new();
+    match opts.method {
+        Method::Completion => {
+            parts.push((opts.completion.k_prime, named(p.kprime.is_some(), "--kprime", opts.completion.k_prime)));
+            parts.push((opts.init_k, named(true, "--init-k", opts.init_k)));
+        }
+        Method::Axiomatic => {
+            let a = &opts.axiomatic;
+            let kmax = a.candidates.iter().copied().max().unwrap_or(0);
+            let flag = if p.candidates.is_some() { "--candidates" } else { "-k" };
+            parts.push((kmax, named(p.candidates.is_some() || p.k.is_some(), flag, kmax)));
+            parts.push((a.refine.k_final, named(p.zoomout_to.is_some(), "--zoomout-to", a.refine.k_final)));
+            parts.push((a.probe.k_final, format!("the size selection (ZoomOut to {})", a.probe.k_final)));
+        }
+        _ => parts.push((opts.k, named(p.k.is_some(), "-k", opts.k))),
+    }
+    if opts.method != Method::Axiomatic
+        && opts.refine == R::Zoomout {
+            parts.push((opts.zoomout_to, named(p.zoomout_to.is_some(), "--zoomout-to", opts.zoomout_to)));
+        }
+    let (need, who) = parts.iter().max_by_key(|(k, _)| *k).cloned().unwrap_or((0, "-k".into()));
+    if opts.method == Method::Completion {
+        return Ok((need.max(opts.basis_size()), who));
+    }
+    // The other methods compute --kprime eigenpairs (default 200), at least what they need.
+    match p.kprime {
+        Some(kp) if kp < need => Err(Error::invalid(
+            "--kprime",
+            format!(
+                "{kp} eigenpairs per shape are fewer than the {need} that {who} needs; raise --kprime or lower {who}"
+            ),
+        )),
+        Some(kp) => Ok((kp, format!("--kprime {kp}"))),
+        None if need >= 200 => Ok((need, who)),
+        None => Ok((200, "--kprime (default 200)".into())),
+    }
+}
+
 /// The library options of `funcorr match` (defaults per method and data, see `--help`).
 fn match_options(args: &MatchArgs) -> Result<funcorr::matching::MatchOptions> {
     pipeline_options(&args.pipe, args.method, is_rich(&args.data))
@@ -1359,21 +1425,32 @@ fn write_colour_transfer(
 
 fn match_shapes(args: &MatchArgs) -> Result<()> {
     let mut st = Stages { quiet: args.quiet, parts: vec![] };
+    // A malformed --data fails before any work.
+    args.data.parse::<funcorr::descriptors::spec::PairDataSpec>()?;
     let opts = match_options(args)?;
     let view = funcorr::viz::View::parse(&args.view)?;
     let size = parse_size(&args.size)?;
-    let basis_k = opts.basis_size().max(if opts.method == funcorr::matching::Method::Completion {
-        0
-    } else {
-        args.pipe.kprime.unwrap_or(200)
-    });
+    let (basis_k, demand) = basis_demand(&args.pipe, &opts)?;
     let x = st.run("read", || Shape::load(&args.x))?;
     let y = st.run("read", || Shape::load(&args.y))?;
+    for (path, shape) in [(&args.x, &x), (&args.y, &y)] {
+        if basis_k >= shape.n_vertices() {
+            return Err(Error::invalid(
+                demand.split(' ').next().filter(|w| w.starts_with('-')).unwrap_or("k"),
+                format!(
+                    "{demand} asks for {basis_k} eigenpairs per shape, but {} has only n = {} vertices (at most n − 1); \
+                     ask for fewer",
+                    path.display(),
+                    shape.n_vertices()
+                ),
+            ));
+        }
+    }
     if let Some(&bad) = args.soft.iter().find(|&&i| i >= x.n_vertices()) {
         return Err(Error::invalid("--soft", format!("vertex {bad} of X does not exist (n = {})", x.n_vertices())));
     }
-    let px = prepared_shape(x, &args.lap, &args.cache, basis_k, &mut st)?;
-    let py = prepared_shape(y, &args.lap, &args.cache, basis_k, &mut st)?;
+    let px = prepared_shape(x, &args.x, &args.lap, &args.cache, basis_k, &mut st)?;
+    let py = prepared_shape(y, &args.y, &args.lap, &args.cache, basis_k, &mut st)?;
     let (f, g) = st.run("data", || {
         pair_data(&args.data, (&px.shape, &px.laplacian, &px.basis), (&py.shape, &py.laplacian, &py.basis), &args.seg)
     })?;
@@ -1384,8 +1461,8 @@ fn match_shapes(args: &MatchArgs) -> Result<()> {
     }
     let stages = st.parts.clone();
     st.run("write", || {
-        let out = &args.output;
-        std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+        // Everything goes into a staging directory, published whole at the end (io::staged).
+        funcorr::io::staged::StagedDir::create(&args.output)?.write_with(|out| {
         write_map_files(out, &r.map_xy, args.one_based)?;
         write_mat_npy(&out.join("C.npy"), &r.c)?;
         if r.c_method.nrows() != r.c.nrows() || opts.refine != funcorr::matching::Refine::None {
@@ -1426,6 +1503,7 @@ fn match_shapes(args: &MatchArgs) -> Result<()> {
         let p = out.join("report.json");
         funcorr::io::write_atomic(&p, serde_json::to_string_pretty(&report).expect("plain JSON"))?;
         write_colour_transfer(out, x, y, &r.map_yx, (!args.no_render).then_some((size, &view)))
+        })
     })?;
     st.note(format!("q {} | C {}×{}", f.q(), r.c.nrows(), r.c.ncols()));
     st.finish();
@@ -1485,6 +1563,24 @@ fn eval(args: &EvalArgs) -> Result<()> {
         y: read_index_list_file(&args.gt_target, true, m)?,
         y_sym: args.gt_target_sym.as_ref().map(|p| read_index_list_file(p, true, m)).transpose()?,
     };
+    // Template lists correspond line by line: a length mismatch names both files.
+    let others =
+        [(Some(&args.gt_target), Some(gt.y.len())), (args.gt_target_sym.as_ref(), gt.y_sym.as_ref().map(Vec::len))];
+    for (path, len) in others {
+        if let (Some(path), Some(len)) = (path, len) {
+            if len != gt.x.len() {
+                return Err(Error::parse(
+                    path,
+                    None,
+                    format!(
+                        "{len} template points, but {} has {} (the files must correspond line by line)",
+                        args.gt_source.display(),
+                        gt.x.len()
+                    ),
+                ));
+            }
+        }
+    }
     let (geo, area, description): (Box<dyn funcorr::eval::Distances + Send + Sync + '_>, f64, &str) =
         match (&target, &cloud) {
             (Shape::Mesh(y), _) => (method.build(y)?, y.total_area(), method.description()),
@@ -1663,8 +1759,17 @@ fn describe(args: &MatchArgs, opts: &funcorr::matching::MatchOptions) -> String 
 const DEMO_X: (&str, &[u8]) = ("tr_reg_000.off", include_bytes!("../data/faust/tr_reg_000.off"));
 const DEMO_Y: (&str, &[u8]) = ("tr_reg_001.off", include_bytes!("../data/faust/tr_reg_001.off"));
 
-fn demo(out: &Path, k: usize) -> Result<()> {
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+fn demo(target: &Path, k: usize) -> Result<()> {
+    let staged = funcorr::io::staged::StagedDir::create(target)?;
+    demo_into(&staged, k).map_err(|e| staged.attribute(e))?;
+    staged.publish()?;
+    outln!("\nwrote {}", target.display());
+    Ok(())
+}
+
+/// The demo, writing into a staging directory that `demo` publishes.
+fn demo_into(staged: &funcorr::io::staged::StagedDir, k: usize) -> Result<()> {
+    let out = staged.path();
     // Enough eigenpairs for the default match pipeline (as many as `funcorr match` computes).
     let args = default_match_args()?;
     let k = k.max(match_options(&args)?.basis_size()).max(args.pipe.kprime.unwrap_or(200));
@@ -1701,7 +1806,7 @@ fn demo(out: &Path, k: usize) -> Result<()> {
             info.factor_seconds + info.iterate_seconds,
             info.restarts,
             basis.residuals.iter().copied().fold(0.0, f64::max),
-            file.display()
+            staged.published_path(&file).display()
         );
         shapes.push((mesh, basis));
     }
@@ -1714,7 +1819,5 @@ fn demo(out: &Path, k: usize) -> Result<()> {
         outln!("{i:>4} {a:>14.6} {b:>14.6} {:>9.2}%", 100.0 * (a - b).abs() / a.max(b));
     }
     demo_segments(out, (mesh_x, x), (mesh_y, y))?;
-    demo_match(out, (mesh_x, x), (mesh_y, y))?;
-    outln!("\nwrote {}", out.display());
-    Ok(())
+    demo_match(out, (mesh_x, x), (mesh_y, y))
 }

@@ -126,10 +126,53 @@ pub(crate) fn adjacency(n: usize, edges: &[[u32; 2]]) -> Result<(Vec<usize>, Vec
     Ok((start, adj))
 }
 
+/// Largest coordinate magnitude accepted: beyond it squared distances and triangle areas overflow
+/// f64 (whose largest value is ≈ 1.8 · 10³⁰⁸), so every geometric quantity would be infinite.
+pub const MAX_COORDINATE: f64 = 1e150;
+
+/// Smallest non-zero extent (largest coordinate range over the dimensions) accepted: below it
+/// squared distances and areas underflow to subnormal numbers or zero.
+pub const MIN_EXTENT: f64 = 1e-150;
+
+/// Checks that `n` points of dimension `d` (row-major `coords`) lie in the range where squared
+/// distances are representable: every |coordinate| ≤ [`MAX_COORDINATE`] and, when they do not
+/// all coincide, an extent ≥ [`MIN_EXTENT`]. `what` names the input in the error.
+fn check_coordinate_range(coords: &[f64], d: usize, what: &str) -> Result<()> {
+    if let Some(p) = coords.iter().position(|c| c.abs() > MAX_COORDINATE) {
+        return Err(Error::invalid(
+            what,
+            format!(
+                "point {} has coordinate {:e}, beyond ±{MAX_COORDINATE:e} where squared lengths and areas overflow; \
+                 rescale the shape",
+                p / d,
+                coords[p]
+            ),
+        ));
+    }
+    let extent = (0..d)
+        .map(|j| {
+            let col = coords.iter().skip(j).step_by(d);
+            let (lo, hi) = col.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &c| (lo.min(c), hi.max(c)));
+            hi - lo
+        })
+        .fold(0.0f64, f64::max);
+    if extent > 0.0 && extent < MIN_EXTENT {
+        return Err(Error::invalid(
+            what,
+            format!(
+                "its extent is {extent:e}, below {MIN_EXTENT:e} where squared lengths and areas underflow; \
+                 rescale the shape"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 impl TriMesh {
     /// Builds a mesh from vertices (n, each [x, y, z]) and triangles (0-based indices).
     ///
-    /// Errors when there are no vertices, a coordinate is not finite, or an index is ≥ n.
+    /// Errors when there are no vertices, a coordinate is not finite, coordinates are outside
+    /// the representable range (see [`MAX_COORDINATE`], [`MIN_EXTENT`]), or an index is ≥ n.
     pub fn new(vertices: Vec<[f64; 3]>, faces: Vec<[u32; 3]>) -> Result<Self> {
         if vertices.is_empty() {
             return Err(Error::invalid("mesh", "it has no vertices"));
@@ -140,6 +183,7 @@ impl TriMesh {
         if let Some(i) = vertices.iter().position(|v| v.iter().any(|c| !c.is_finite())) {
             return Err(Error::invalid("mesh", format!("vertex {i} has a non-finite coordinate {:?}", vertices[i])));
         }
+        check_coordinate_range(vertices.as_flattened(), 3, "mesh")?;
         let n = vertices.len() as u32;
         if let Some(f) = faces.iter().position(|f| f.iter().any(|&i| i >= n)) {
             return Err(Error::invalid(
@@ -434,7 +478,8 @@ pub(crate) fn bounding_box(v: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
 
 impl PointSet {
     /// Builds a point set from `n` rows of dimension `d` (row-major `coords`, length n·d).
-    /// Errors on n = 0, d = 0, a length mismatch or a non-finite value.
+    /// Errors on n = 0, d = 0, a length mismatch, a non-finite value or values outside the
+    /// representable range (see [`MAX_COORDINATE`], [`MIN_EXTENT`]).
     pub fn new(n: usize, d: usize, coords: Vec<f64>) -> Result<Self> {
         if n == 0 || d == 0 {
             return Err(Error::invalid("point set", format!("it is empty ({n} points of dimension {d})")));
@@ -448,6 +493,7 @@ impl PointSet {
         if let Some(p) = coords.iter().position(|c| !c.is_finite()) {
             return Err(Error::invalid("point set", format!("point {} has a non-finite coordinate", p / d)));
         }
+        check_coordinate_range(&coords, d, "point set")?;
         Ok(PointSet { n, d, coords })
     }
     /// Number of points `n`.
@@ -521,6 +567,19 @@ pub(crate) mod tests {
     /// A unit square in the plane z = 0 split into two triangles.
     pub(crate) fn square() -> TriMesh {
         TriMesh::new(vec![[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]], vec![[0, 1, 2], [0, 2, 3]]).unwrap()
+    }
+
+    #[test]
+    fn coordinates_whose_squares_overflow_or_underflow_are_rejected() {
+        let faces = vec![[0, 1, 2]];
+        let huge = TriMesh::new(vec![[0., 0., 0.], [1e300, 0., 0.], [0., 1e300, 0.]], faces.clone()).unwrap_err();
+        assert!(huge.to_string().contains("overflow"), "{huge}");
+        let tiny = TriMesh::new(vec![[0., 0., 0.], [1e-310, 0., 0.], [0., 1e-310, 0.]], faces).unwrap_err();
+        assert!(tiny.to_string().contains("underflow"), "{tiny}");
+        let cloud = PointSet::new(2, 2, vec![0.0, 0.0, 1e200, 0.0]).unwrap_err();
+        assert!(cloud.to_string().contains("overflow"), "{cloud}");
+        // Small but representable shapes (millimetres in kilometres) are fine.
+        assert!(TriMesh::new(vec![[0., 0., 0.], [1e-100, 0., 0.], [0., 1e-100, 0.]], vec![[0, 1, 2]]).is_ok());
     }
 
     #[test]

@@ -369,8 +369,8 @@ fn match_every_method_and_its_outputs() {
             "low-rank form (9)",
         ),
         (vec!["--method", "completion", "--optimizer", "rcg", "--mu4", "0.1", "-k", "10", "--kprime", "20"], "mu4"),
-        (vec!["--soft", "99999", "-k", "10", "--kprime", "20"], "--soft"),
-        (vec!["--view", "0", "-k", "10", "--kprime", "20"], "--view"),
+        (vec!["--soft", "99999", "-k", "10", "--kprime", "120"], "--soft"),
+        (vec!["--view", "0", "-k", "10", "--kprime", "120"], "--view"),
     ] {
         let mut args: Vec<String> = ["match", xs, ys, "--data", segs.as_str()].iter().map(|s| s.to_string()).collect();
         args.extend(extra.iter().map(|s| s.to_string()));
@@ -1084,5 +1084,189 @@ fn vertex_forms_get_their_own_default_weights() {
     assert_eq!(mus(&params(&["--form", "low-norm", "--scaling", "paper"])).0, 1e-8);
     let h = text(&run(&["match", "--help"]).stdout);
     assert!(h.contains("0.3 for fixed-rank, low-rank and low-norm"), "{h}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// Writes a mesh as OFF into `dir`.
+fn write_off(dir: &Path, name: &str, vertices: Vec<[f64; 3]>, faces: Vec<[u32; 3]>) -> PathBuf {
+    let p = dir.join(name);
+    funcorr::io::write_mesh(&p, &funcorr::io::MeshData { vertices, faces, colors: None }).unwrap();
+    p
+}
+
+/// The files of a directory, sorted (hidden ones too).
+fn listing(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> =
+        std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn outputs_are_published_whole_and_reruns_leave_only_their_own_files() {
+    let d = tmp("staged");
+    let out = d.join("out");
+    let (x, y) = (data("tr_reg_000.off"), data("tr_reg_001.off"));
+    let (x, y, o) = (x.to_str().unwrap(), y.to_str().unwrap(), out.to_str().unwrap());
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    let r = run(&["match", x, y, "-o", o, "--soft", "3", "--size", "400x200", "-q"]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert!(out.join("soft_3.npy").exists() && out.join("render.png").exists());
+    let first = std::fs::read_to_string(out.join("map.txt")).unwrap();
+    // A second run with fewer outputs: the first run's extra files are gone, the user's stays.
+    let r = run(&["match", x, y, "-o", o, "--no-render", "--one-based", "-q"]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let files = listing(&out);
+    for gone in ["soft_3.npy", "soft_3.ply", "render.png"] {
+        assert!(!files.contains(&gone.to_string()), "stale {gone}: {files:?}");
+    }
+    assert!(files.contains(&"notes.txt".to_string()) && files.contains(&"map.txt".to_string()), "{files:?}");
+    assert!(!files.iter().any(|f| f.starts_with(".funcorr-staging")), "staging left: {files:?}");
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("funcorr-manifest.json")).unwrap()).unwrap();
+    let listed: Vec<&str> = manifest["files"].as_array().unwrap().iter().map(|f| f.as_str().unwrap()).collect();
+    assert!(listed.contains(&"map.txt") && !listed.contains(&"notes.txt") && !listed.contains(&"render.png"));
+    let second = std::fs::read_to_string(out.join("map.txt")).unwrap();
+    assert_ne!(first, second, "--one-based changes every line");
+    // A run that fails at the end (a directory is in the way of render.png) publishes nothing:
+    // map.txt keeps the previous run's content, no partial file appears.
+    std::fs::create_dir_all(out.join("render.png")).unwrap();
+    let r = run(&["match", x, y, "-o", o, "--size", "400x200", "-q"]);
+    assert_fails(&r, "render.png");
+    assert_eq!(std::fs::read_to_string(out.join("map.txt")).unwrap(), second);
+    assert!(!listing(&out).iter().any(|f| f.starts_with(".funcorr-staging") || f.ends_with(".tmp")));
+    // descriptors: the matrix and its names appear together or not at all.
+    let (dnpy, names) = (d.join("wks.npy"), d.join("no-such-dir/names.txt"));
+    let r = run(&["descriptors", x, "--kind", "wks", "-o", dnpy.to_str().unwrap(), "--names", names.to_str().unwrap()]);
+    assert_fails(&r, "names.txt");
+    assert!(!dnpy.exists(), "the matrix was written although its names could not be");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn hostile_inputs_of_issue_15_get_errors_naming_the_option_or_file() {
+    let d = tmp("hostile15");
+    let f = data("tr_reg_000.off");
+    let fs = f.to_str().unwrap();
+    let cases: Vec<(Vec<[f64; 3]>, &str)> = vec![
+        (vec![[0., 0., 0.], [1., 0., 0.], [2., 0., 0.], [3., 0., 0.]], "zero total area"),
+        (vec![[1., 1., 1.]; 4], "zero total area"),
+        (vec![[0., 0., 0.], [1e-310, 0., 0.], [0., 1e-310, 0.], [1e-310, 1e-310, 0.]], "underflow"),
+    ];
+    for (i, (v, needle)) in cases.into_iter().enumerate() {
+        let name = format!("flat{i}.off");
+        let p = write_off(&d, &name, v, vec![[0, 1, 2], [1, 2, 3]]);
+        let r = run(&["spectrum", p.to_str().unwrap(), "-k", "2", "--no-cache"]);
+        assert_fails(&r, needle);
+        assert!(text(&r.stderr).contains(&name), "{}", text(&r.stderr));
+    }
+    let big = d.join("big.off");
+    std::fs::write(&big, "OFF\n3 1 0\n0 0 0\n1e300 0 0\n0 1e300 0\n3 0 1 2\n").unwrap();
+    assert_fails(&run(&["info", big.to_str().unwrap()]), "overflow");
+    // A kNN bandwidth under which every weight underflows.
+    assert_fails(&run(&["spectrum", fs, "-k", "5", "--laplacian", "knn", "--sigma", "1e-300", "--no-cache"]), "sigma");
+    // An n × 0 data matrix.
+    let empty = d.join("empty.npy");
+    funcorr::io::npy::write_npy_matrix(&empty, &funcorr::io::DenseMatrix { rows: 4999, cols: 0, data: vec![] })
+        .unwrap();
+    let o = d.join("d.npy");
+    let r =
+        run(&["descriptors", fs, "--kind", "matrix", "--matrix", empty.to_str().unwrap(), "-o", o.to_str().unwrap()]);
+    assert_fails(&r, "column");
+    // A huge Lanczos block.
+    assert_fails(&run(&["spectrum", fs, "-k", "5", "--block-size", "100000000", "--no-cache"]), "--block-size");
+    // Sizes that come from another option name it.
+    let y = data("tr_reg_001.off");
+    let ys = y.to_str().unwrap();
+    let out = d.join("m");
+    let os = out.to_str().unwrap();
+    let r = run(&["match", fs, ys, "-o", os, "-k", "50", "--kprime", "10", "--method", "completion"]);
+    assert_fails(&r, "--kprime 10");
+    assert_fails(&run(&["match", fs, ys, "-o", os, "-k", "50", "--kprime", "10"]), "invalid --kprime");
+    let torus: Vec<[f64; 3]> = (0..120)
+        .map(|i| {
+            let (u, v) =
+                (std::f64::consts::TAU * (i / 10) as f64 / 12.0, std::f64::consts::TAU * (i % 10) as f64 / 10.0);
+            [(2.0 + v.cos()) * u.cos(), (2.0 + v.cos()) * u.sin(), v.sin()]
+        })
+        .collect();
+    let faces: Vec<[u32; 3]> = (0..12u32)
+        .flat_map(|i| {
+            (0..10u32).flat_map(move |j| {
+                let (a, b) = (i * 10 + j, ((i + 1) % 12) * 10 + j);
+                let (c, e) = (((i + 1) % 12) * 10 + (j + 1) % 10, i * 10 + (j + 1) % 10);
+                [[a, b, c], [a, c, e]]
+            })
+        })
+        .collect();
+    let small = write_off(&d, "torus120.off", torus, faces);
+    let ss = small.to_str().unwrap();
+    let r = run(&["match", ss, ss, "-o", os, "--no-cache"]);
+    assert_fails(&r, "--kprime (default 200)");
+    assert!(text(&r.stderr).contains("torus120.off"), "{}", text(&r.stderr));
+    let r = run(&["match", ss, ss, "-o", os, "--no-cache", "--method", "completion"]);
+    assert_fails(&r, "--zoomout-to (default 150)");
+    // Landmarks read for one shape say what they expect.
+    let lm = d.join("lm.txt");
+    std::fs::write(&lm, "-3 5\n").unwrap();
+    let r = run(&[
+        "descriptors",
+        fs,
+        "--kind",
+        "landmarks",
+        "--landmarks",
+        lm.to_str().unwrap(),
+        "-o",
+        o.to_str().unwrap(),
+    ]);
+    assert_fails(&r, "lm.txt");
+    assert!(!text(&r.stderr).contains("-2)"), "{}", text(&r.stderr));
+    // eval: template lists of different lengths name the file.
+    let short = d.join("short.vts");
+    let vts = std::fs::read_to_string(data("tr_reg_001.vts")).unwrap();
+    std::fs::write(&short, vts.lines().take(10).collect::<Vec<_>>().join("\n")).unwrap();
+    let map = d.join("map.txt");
+    std::fs::write(&map, (0..4999).map(|i| format!("{i}\n")).collect::<String>()).unwrap();
+    let r = run(&[
+        "eval",
+        "--source",
+        fs,
+        "--target",
+        ys,
+        "--map",
+        map.to_str().unwrap(),
+        "--gt-source",
+        data("tr_reg_000.vts").to_str().unwrap(),
+        "--gt-target",
+        short.to_str().unwrap(),
+    ]);
+    assert_fails(&r, "short.vts");
+    // eval on a target with two components: an error, not "mean error inf".
+    let two = |shift: f64| -> Vec<[f64; 3]> {
+        [[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.]].iter().map(|p| [p[0] + shift, p[1], p[2]]).collect()
+    };
+    let tets: Vec<[u32; 3]> =
+        [[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]].iter().flat_map(|t: &[u32; 3]| [*t, t.map(|v| v + 4)]).collect();
+    let disc = write_off(&d, "two.off", [two(0.0), two(5.0)].concat(), tets);
+    let one = d.join("one.vts");
+    std::fs::write(&one, "1\n").unwrap();
+    let cross = d.join("cross.txt");
+    std::fs::write(&cross, "4\n5\n6\n7\n0\n1\n2\n3\n").unwrap();
+    let ds = disc.to_str().unwrap();
+    let r = run(&[
+        "eval",
+        "--source",
+        ds,
+        "--target",
+        ds,
+        "--map",
+        cross.to_str().unwrap(),
+        "--gt-source",
+        one.to_str().unwrap(),
+        "--gt-target",
+        one.to_str().unwrap(),
+    ]);
+    assert_fails(&r, "not connected");
     std::fs::remove_dir_all(&d).unwrap();
 }

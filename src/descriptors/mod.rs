@@ -15,6 +15,7 @@ pub mod matching;
 pub mod mser;
 pub mod persistence;
 pub mod signatures;
+pub mod spec;
 
 use faer::Mat;
 

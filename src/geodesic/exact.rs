@@ -309,7 +309,7 @@ impl Work {
         let mut bound = f64::INFINITY;
         let mut pops = 0usize;
         while let Some(entry) = self.heap.pop() {
-            if !targets.is_empty() && (targets.len() <= 16 || pops % 64 == 0) {
+            if !targets.is_empty() && (targets.len() <= 16 || pops.is_multiple_of(64)) {
                 bound = targets.iter().map(|&(t, cap)| self.dist[t].min(cap)).fold(0.0, f64::max);
             }
             let key = entry.key();

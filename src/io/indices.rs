@@ -19,7 +19,11 @@ fn index(tok: &str, one_based: bool, limit: usize, path: &Path, line: usize, wha
     let v: i64 = parse_tok(tok, &format!("an integer {what}"), path, line)?;
     let first = if one_based { 1 } else { 0 };
     if v < first || (v - first) as u64 >= limit as u64 {
-        let range = format!("{first}..={}", limit as i64 - 1 + first);
+        // `limit` is usize::MAX when the file is read without a shape to check against.
+        let range = match u64::try_from(limit).ok().and_then(|l| i64::try_from(l).ok()) {
+            Some(l) if limit < usize::MAX => format!("{first}..={}", l - 1 + first),
+            _ => format!("{first} or more"),
+        };
         return Err(Error::parse(path, Some(line), format!("{what} {v} is out of range (expected {range})")));
     }
     Ok((v - first) as usize)
@@ -44,6 +48,7 @@ pub fn read_index_pairs<R: BufRead>(
                 format!("expected two vertex indices, found {} values", toks.len()),
             ));
         }
+        super::check_records(out.len(), "index pairs", path, Some(line))?;
         out.push((
             index(toks[0], one_based, n, path, line, "source vertex")?,
             index(toks[1], one_based, m, path, line, "target vertex")?,
@@ -60,6 +65,7 @@ pub fn read_index_list<R: BufRead>(r: R, path: &Path, one_based: bool, n: usize)
     let mut lines = LineReader::new(r, path, 1);
     let mut out = Vec::new();
     while let Some((line, text)) = lines.next_content()? {
+        super::check_records(out.len(), "vertex indices", path, Some(line))?;
         out.push(index(text, one_based, n, path, line, "vertex")?);
     }
     if out.is_empty() {

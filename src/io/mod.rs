@@ -16,6 +16,7 @@ pub mod obj;
 pub mod off;
 pub mod ply;
 pub mod points;
+pub mod staged;
 mod text;
 
 use std::fs::File;
@@ -162,6 +163,25 @@ pub(crate) fn write_file(path: &Path, f: impl FnOnce(&mut BufWriter<File>) -> Re
     res
 }
 
+/// Most records one file may hold: vertices, triangles (after fan triangulation), values of a
+/// matrix, lines of an index file — 2²⁷ ≈ 1.3 · 10⁸. Far beyond what the pipeline can process (an
+/// eigenbasis of 50 functions on 2²⁷ vertices alone takes 54 GB), and small enough that an input
+/// that never ends (a pipe or a device such as `/dev/zero` behind a valid header) fails with an
+/// error after at most a few GB instead of exhausting memory.
+pub const MAX_RECORDS: usize = 1 << 27;
+
+/// Most bytes read as the body of one PLY file (8 GiB; the whole body is held in memory).
+pub const MAX_PLY_BODY: u64 = 1 << 33;
+
+/// Errors when a reader is about to store record number `len` (0-based) of kind `what`
+/// beyond [`MAX_RECORDS`].
+pub(crate) fn check_records(len: usize, what: &str, path: &Path, line: Option<usize>) -> Result<()> {
+    if len >= MAX_RECORDS {
+        return Err(Error::parse(path, line, format!("expected at most {MAX_RECORDS} {what}, found more")));
+    }
+    Ok(())
+}
+
 /// Capacity to reserve for `n` records announced by an untrusted header: at most `limit`.
 pub(crate) fn bounded_capacity(n: u64, limit: usize) -> usize {
     usize::try_from(n).unwrap_or(usize::MAX).min(limit)
@@ -187,11 +207,14 @@ pub(crate) fn check_index(idx: f64, nv: usize, face: usize, path: &Path, line: O
     }
 }
 
-/// Appends the fan triangulation of polygon `poly` (at least 3 vertices) to `faces`.
-pub(crate) fn push_fan(faces: &mut Vec<[u32; 3]>, poly: &[u32]) {
+/// Appends the fan triangulation of polygon `poly` (at least 3 vertices) to `faces`, at most
+/// [`MAX_RECORDS`] triangles in all.
+pub(crate) fn push_fan(faces: &mut Vec<[u32; 3]>, poly: &[u32], path: &Path, line: Option<usize>) -> Result<()> {
+    check_records((faces.len() + poly.len()).saturating_sub(3), "triangles", path, line)?;
     for k in 1..poly.len().saturating_sub(1) {
         faces.push([poly[0], poly[k], poly[k + 1]]);
     }
+    Ok(())
 }
 
 /// Converts a colour channel: an integer 0–255, or when `float` a value in [0, 1] (scaled by 255).
@@ -404,7 +427,7 @@ mod tests {
     #[test]
     fn helpers() {
         let mut f = Vec::new();
-        push_fan(&mut f, &[4, 5, 6, 7, 8]);
+        push_fan(&mut f, &[4, 5, 6, 7, 8], Path::new("t"), None).unwrap();
         assert_eq!(f, vec![[4, 5, 6], [4, 6, 7], [4, 7, 8]]);
         assert_eq!(color_channel(1.0, true), Some(255));
         assert_eq!(color_channel(0.5, true), Some(128));

@@ -317,7 +317,13 @@ pub fn write_npz(path: &Path, arrays: &[(&str, NpzArray)]) -> Result<()> {
 pub fn read_npz(path: &Path) -> Result<Vec<(String, NpzArray)>> {
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
     let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
-    let mut zip = ZipArchive::new(BufReader::new(file)).map_err(|e| zip_error(path, e))?;
+    read_npz_from(BufReader::new(file), len, path)
+}
+
+/// [`read_npz`] from a seekable reader of `len` bytes (e.g. an in-memory archive); `path` is
+/// only used in error messages.
+pub fn read_npz_from<R: std::io::Read + std::io::Seek>(r: R, len: u64, path: &Path) -> Result<Vec<(String, NpzArray)>> {
+    let mut zip = ZipArchive::new(r).map_err(|e| zip_error(path, e))?;
     let mut out = Vec::with_capacity(zip.len());
     for i in 0..zip.len() {
         let (name, method, size) = {
@@ -361,7 +367,7 @@ mod tests {
     /// A version-1 `.npy` file with the header dict `dict`.
     fn npy_raw(dict: &str, data: &[u8]) -> Vec<u8> {
         let mut h = dict.to_string();
-        while (10 + h.len() + 1) % 64 != 0 {
+        while !(10 + h.len() + 1).is_multiple_of(64) {
             h.push(' ');
         }
         h.push('\n');

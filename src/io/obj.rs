@@ -11,7 +11,7 @@ use std::io::BufRead;
 use std::path::Path;
 
 use super::text::{clip, parse_tok, LineReader};
-use super::{check_vertex, color_channel, finish, push_fan, MeshData};
+use super::{check_records, check_vertex, color_channel, finish, push_fan, MeshData};
 use crate::error::{Error, Result};
 
 /// Statements that are valid OBJ but carry nothing this reader keeps.
@@ -80,6 +80,7 @@ pub fn read_obj<R: BufRead>(r: R, path: &Path) -> Result<MeshData> {
                     );
                     return Err(err(msg));
                 }
+                check_records(i, "vertices", path, Some(ln))?;
                 mesh.vertices.push(check_vertex([vals[0], vals[1], vals[2]], i, path, Some(ln))?);
                 if vals.len() == 6 {
                     let c: Option<Vec<u8>> = vals[3..].iter().map(|&v| color_channel(v, true)).collect();
@@ -106,7 +107,7 @@ pub fn read_obj<R: BufRead>(r: R, path: &Path) -> Result<MeshData> {
                 if poly.len() < 3 {
                     return Err(err(format!("face {f}: expected at least 3 vertices, found {}", poly.len())));
                 }
-                push_fan(&mut mesh.faces, &poly);
+                push_fan(&mut mesh.faces, &poly, path, Some(ln))?;
             }
             kw if IGNORED.contains(&kw) => {}
             kw => return Err(err(format!("expected an OBJ statement (v, f, vt, vn, g, …), found '{}'", clip(kw)))),

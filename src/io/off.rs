@@ -11,7 +11,7 @@ use std::io::{BufRead, Write};
 use std::path::Path;
 
 use super::text::{clip, parse_tok, LineReader};
-use super::{bounded_capacity, check_index, check_vertex, color_channel, finish, push_fan, MeshData};
+use super::{bounded_capacity, check_index, check_vertex, color_channel, finish, push_fan, MeshData, MAX_RECORDS};
 use crate::error::{Error, Result};
 
 /// Most records reserved ahead from a header count (the vectors grow past it as data arrives).
@@ -48,8 +48,11 @@ pub fn read_off<R: BufRead>(r: R, path: &Path) -> Result<MeshData> {
     if let Some(ne) = counts.get(2) {
         parse_tok::<u64>(ne, "an edge count", path, counts_line)?;
     }
-    if nv > u64::from(u32::MAX) {
-        return Err(err(counts_line, format!("expected at most 2^32 - 1 vertices, found {nv}")));
+    if nv > MAX_RECORDS as u64 || nf > MAX_RECORDS as u64 {
+        return Err(err(
+            counts_line,
+            format!("expected at most {MAX_RECORDS} vertices and faces, found {nv} and {nf}"),
+        ));
     }
 
     let mut mesh = MeshData {
@@ -111,7 +114,7 @@ pub fn read_off<R: BufRead>(r: R, path: &Path) -> Result<MeshData> {
             );
             return Err(err(ln, msg));
         }
-        push_fan(&mut mesh.faces, &poly);
+        push_fan(&mut mesh.faces, &poly, path, Some(ln))?;
     }
 
     if let Some((ln, l)) = lines.next_content()? {
@@ -247,15 +250,17 @@ mod tests {
         assert_parse(
             read(b"OFF\n999999999999 1 0\n0 0 0\n"),
             Some(Some(2)),
-            "at most 2^32 - 1 vertices, found 999999999999",
+            "at most 134217728 vertices and faces, found 999999999999",
         );
         assert_parse(
-            read(b"OFF\n4000000000 1 0\n0 0 0\n"),
+            read(b"OFF\n100000000 1 0\n0 0 0\n"),
             Some(Some(4)),
-            "expected vertex 1 of 4000000000, found end of file",
+            "expected vertex 1 of 100000000, found end of file",
         );
         let faces = read(b"OFF\n3 18446744073709551615 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
-        assert_parse(faces, Some(Some(7)), "expected face 1 of 18446744073709551615");
+        assert_parse(faces, Some(Some(2)), "found 3 and 18446744073709551615");
+        let faces = read(b"OFF\n3 100000000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+        assert_parse(faces, Some(Some(7)), "expected face 1 of 100000000");
         let huge_poly = read(b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n4000000000 0 1 2\n");
         assert_parse(huge_poly, Some(Some(6)), "face 0: expected 4000000000 vertex indices, found 3");
     }

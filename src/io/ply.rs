@@ -11,7 +11,9 @@ use std::io::{BufRead, Read, Write};
 use std::path::Path;
 
 use super::text::{clip, parse_tok, LineReader, MAX_LINE};
-use super::{check_index, check_vertex, color_channel, finish, push_fan, validate_for_write, MeshData};
+use super::{
+    check_index, check_vertex, color_channel, finish, push_fan, validate_for_write, MeshData, MAX_PLY_BODY, MAX_RECORDS,
+};
 use crate::error::{Error, Result};
 
 /// A PLY scalar type.
@@ -103,6 +105,25 @@ impl Element {
     }
 
     /// Smallest possible size of a record in bytes (ASCII: one character and a separator per value).
+    /// Largest size of one record in bytes: binary with every list at its longest (the count
+    /// type's maximum, at most [`MAX_RECORDS`] + 2 entries); ASCII one line of at most
+    /// [`MAX_LINE`] bytes. Saturates instead of overflowing.
+    fn max_record_bytes(&self, ascii: bool) -> u64 {
+        if ascii {
+            return MAX_LINE as u64 + 1;
+        }
+        self.props
+            .iter()
+            .map(|(_, k)| match k {
+                Kind::Scalar(t) => t.size() as u64,
+                Kind::List(ct, it) => {
+                    let longest = (1u64 << (8 * ct.size()).min(63)).min(MAX_RECORDS as u64 + 2);
+                    (ct.size() as u64).saturating_add(longest.saturating_mul(it.size() as u64))
+                }
+            })
+            .fold(0u64, u64::saturating_add)
+    }
+
     fn min_record_bytes(&self, ascii: bool) -> u64 {
         let size = |k: &Kind| match k {
             Kind::Scalar(t) | Kind::List(t, _) => t.size() as u64,
@@ -175,7 +196,12 @@ fn parse_header(data: &[u8], path: &Path) -> Result<Header> {
                 if !names.insert(name.to_string()) {
                     return Err(err(ln, format!("expected unique element names, found a second '{}'", clip(name))));
                 }
-                let count = parse_tok(count, &format!("the count of element '{}'", clip(name)), path, ln)?;
+                let count: u64 = parse_tok(count, &format!("the count of element '{}'", clip(name)), path, ln)?;
+                if count > MAX_RECORDS as u64 {
+                    let msg =
+                        format!("element '{}': expected at most {MAX_RECORDS} records, found {count}", clip(name));
+                    return Err(err(ln, msg));
+                }
                 elements.push(Element { name: name.to_string(), count, props: Vec::new() });
             }
             ["property", rest @ ..] => {
@@ -374,8 +400,24 @@ pub fn read_ply<R: Read>(r: R, path: &Path) -> Result<MeshData> {
             break;
         }
     }
-    r.read_to_end(&mut data).map_err(|e| Error::io(path, e))?;
     let header = parse_header(&data, path)?;
+    // The body: at most what the header's counts allow (and MAX_PLY_BODY), so that an input
+    // that never ends after a valid header is an error, not an allocation as large as memory.
+    let ascii = header.binary.is_none();
+    let limit = header
+        .elements
+        .iter()
+        .map(|e| e.count.saturating_mul(e.max_record_bytes(ascii)))
+        .fold(MAX_LINE as u64, u64::saturating_add)
+        .min(MAX_PLY_BODY);
+    let read = (&mut r).take(limit + 1).read_to_end(&mut data).map_err(|e| Error::io(path, e))?;
+    if read as u64 > limit {
+        let msg = format!(
+            "expected at most {limit} bytes after the header (what its element counts allow{}), found more",
+            if limit == MAX_PLY_BODY { ", capped at 8 GiB" } else { "" }
+        );
+        return Err(Error::parse(path, Some(header.lines), msg));
+    }
     let hline = Some(header.lines);
     let herr = |msg: String| Error::parse(path, hline, msg);
 
@@ -459,7 +501,7 @@ pub fn read_ply<R: Read>(r: R, path: &Path) -> Result<MeshData> {
                     ));
                 }
                 let poly = idx.iter().map(|&v| check_index(v, nv, rec, path, line)).collect::<Result<Vec<u32>>>()?;
-                push_fan(&mut mesh.faces, &poly);
+                push_fan(&mut mesh.faces, &poly, path, line)?;
             }
         }
     }
@@ -774,20 +816,34 @@ mod tests {
 
     #[test]
     fn absurd_counts_fail_before_allocating() {
-        let h = "format binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\nproperty float z\n";
+        let h = "format binary_little_endian 1.0\nelement vertex 100000000\nproperty float x\nproperty float y\nproperty float z\n";
         assert_parse(
             read(&ply(h, &[0u8; 100])),
             None,
-            "element 'vertex' declares 4000000000 records of at least 12 bytes, but only 100 bytes remain",
+            "element 'vertex' declares 100000000 records of at least 12 bytes, but only 100 bytes remain",
         );
-        let h = h.replace("4000000000", "18446744073709551615").replace("binary_little_endian", "ascii");
-        assert_parse(read(&ply(&h, b"0 0 0\n")), None, "at most 2^32 - 1 vertices");
+        let h = h.replace("100000000", "18446744073709551615").replace("binary_little_endian", "ascii");
+        assert_parse(
+            read(&ply(&h, b"0 0 0\n")),
+            Some(Some(3)),
+            "at most 134217728 records, found 18446744073709551615",
+        );
         let h = "format ascii 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\nproperty float z\n";
-        assert_parse(read(&ply(h, b"0 0 0\n")), Some(Some(8)), "declares 4000000000 records");
+        assert_parse(read(&ply(h, b"0 0 0\n")), Some(Some(3)), "at most 134217728 records, found 4000000000");
+        let h = "format ascii 1.0\nelement vertex 100000000\nproperty float x\nproperty float y\nproperty float z\n";
+        assert_parse(read(&ply(h, b"0 0 0\n")), Some(Some(8)), "declares 100000000 records");
         let h = format!(
-            "format binary_little_endian 1.0\n{XYZ}element face 3000000000\nproperty list uchar int vertex_indices\n"
+            "format binary_little_endian 1.0\n{XYZ}element face 100000000\nproperty list uchar int vertex_indices\n"
         );
-        assert_parse(read(&ply(&h, &verts().i32(&[0; 20]).0)), None, "element 'face' declares 3000000000 records");
+        assert_parse(read(&ply(&h, &verts().i32(&[0; 20]).0)), None, "element 'face' declares 100000000 records");
+        // A valid header followed by a body that never ends (as /dev/zero): an error after the
+        // bytes the header's counts allow, not an allocation as large as memory.
+        let h =
+            format!("format binary_little_endian 1.0\n{XYZ}element face 1\nproperty list uchar int vertex_indices\n");
+        let head = ply(&h, &[]);
+        let endless = std::io::Read::chain(head.as_slice(), std::io::repeat(0));
+        let e = read_ply(endless, Path::new("z.ply")).unwrap_err().to_string();
+        assert!(e.contains("after the header") && e.contains("found more"), "{e}");
     }
 
     #[test]

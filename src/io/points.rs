@@ -8,7 +8,7 @@ use std::io::BufRead;
 use std::path::Path;
 
 use super::text::{clip, parse_tok, LineReader};
-use super::{check_vertex, finish, DenseMatrix, MeshData};
+use super::{check_records, check_vertex, finish, DenseMatrix, MeshData};
 use crate::error::{Error, Result};
 
 /// Calls `row(line, index, fields)` for each data line of `r`, skipping a header line whose
@@ -51,6 +51,7 @@ pub fn read_points_text<R: BufRead>(r: R, path: &Path) -> Result<MeshData> {
         }
         let what = format!("a coordinate of point {i}");
         let c = |k: usize| parse_tok::<f64>(f[k], &what, path, ln);
+        check_records(i, "points", path, Some(ln))?;
         mesh.vertices.push(check_vertex([c(0)?, c(1)?, c(2)?], i, path, Some(ln))?);
         Ok(())
     })?;
@@ -77,6 +78,7 @@ pub fn read_matrix_text<R: BufRead>(r: R, path: &Path) -> Result<DenseMatrix> {
                 let msg = format!("row {i}, column {j}: expected a finite number, found '{}'", clip(t));
                 return Err(Error::parse(path, Some(ln), msg));
             }
+            check_records(m.data.len(), "values", path, Some(ln))?;
             m.data.push(v);
         }
         m.rows += 1;

@@ -124,9 +124,8 @@ impl MatchOptions {
             Method::Axiomatic => return self.axiomatic.basis_size(),
             _ => self.k,
         };
-        if self.refine != Refine::None {
-            k = k.max(self.refine_k);
-        }
+        // refine_k needs no eigenpairs of its own: it only truncates the completion's k' × k'
+        // map (min(refine_k, k')).
         if self.refine == Refine::Zoomout {
             k = k.max(self.zoomout_to);
         }

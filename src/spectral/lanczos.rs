@@ -338,6 +338,17 @@ fn lanczos_run(
     let t1 = Instant::now();
     // Maximum basis size: about 2k (as ARPACK's default ncv), at least k + 4b.
     // (Measured: 1.5k restarts too often, 2.5k–3k spend more in orthogonalization than they save.)
+    if opts.block_size.is_some() && b.saturating_mul(6) > n {
+        // A user's block size: say so, rather than blaming k (the basis holds ≥ k + 5 blocks).
+        return Err(Error::invalid(
+            "block_size",
+            format!(
+                "a Lanczos block size of {b} needs more than {} vertices (n = {n}); use at most {}",
+                b.saturating_mul(6),
+                n / 6
+            ),
+        ));
+    }
     let pmax = (2 * k).max(k + 4 * b).div_ceil(b) * b;
     if pmax + b > n {
         return Err(Error::invalid(
