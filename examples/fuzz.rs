@@ -20,16 +20,17 @@ fn main() {
     let only: Vec<&str> = args.iter().skip(2).map(String::as_str).collect();
     driver::quiet_panics();
     let out = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/fuzz-failures");
-    println!("| target | inputs | accepted | seconds | inputs/s | failures |");
-    println!("|---|---:|---:|---:|---:|---:|");
+    println!("| target | inputs | accepted | distinct errors | seconds | inputs/s | failures |");
+    println!("|---|---:|---:|---:|---:|---:|---:|");
     let mut total = 0;
     for t in driver::targets().iter().filter(|t| only.is_empty() || only.contains(&t.name)) {
         let run = driver::fuzz(t, inputs, seed);
         println!(
-            "| {} | {} | {:.1}% | {:.1} | {:.0} | {} |",
+            "| {} | {} | {:.1}% | {} | {:.1} | {:.0} | {} |",
             run.target,
             run.inputs,
             100.0 * run.accepted as f64 / (run.inputs + t.seeds.len() as u64) as f64,
+            run.distinct_errors,
             run.seconds,
             run.inputs as f64 / run.seconds,
             run.failures.len()

@@ -1349,10 +1349,9 @@ fn basis_demand(p: &PipelineArgs, opts: &funcorr::matching::MatchOptions) -> Res
         }
         _ => parts.push((opts.k, named(p.k.is_some(), "-k", opts.k))),
     }
-    if opts.method != Method::Axiomatic
-        && opts.refine == R::Zoomout {
-            parts.push((opts.zoomout_to, named(p.zoomout_to.is_some(), "--zoomout-to", opts.zoomout_to)));
-        }
+    if opts.method != Method::Axiomatic && opts.refine == R::Zoomout {
+        parts.push((opts.zoomout_to, named(p.zoomout_to.is_some(), "--zoomout-to", opts.zoomout_to)));
+    }
     let (need, who) = parts.iter().max_by_key(|(k, _)| *k).cloned().unwrap_or((0, "-k".into()));
     if opts.method == Method::Completion {
         return Ok((need.max(opts.basis_size()), who));

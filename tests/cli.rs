@@ -122,6 +122,22 @@ fn spectrum_writes_a_valid_basis_and_uses_the_cache() {
     let strict =
         run(&["spectrum", f.to_str().unwrap(), "-k", "10", "--tol", "1e-11", "--cache-dir", cache.to_str().unwrap()]);
     assert!(strict.status.success() && !text(&strict.stderr).contains("cached basis"), "{}", text(&strict.stderr));
+    // A corrupt byte in every cached basis: a warning, a recompute, the same numbers.
+    for e in std::fs::read_dir(&cache).unwrap() {
+        let p = e.unwrap().path();
+        let mut bytes = std::fs::read(&p).unwrap();
+        let mid = bytes.len() / 2;
+        bytes[mid] ^= 0x20;
+        std::fs::write(&p, bytes).unwrap();
+    }
+    let again = run(&args);
+    let err = text(&again.stderr);
+    assert!(again.status.success(), "{err}");
+    assert!(err.contains("warning: ignoring a damaged cached eigenbasis") && !err.contains("cached basis"), "{err}");
+    let recomputed = load_basis(&out_file).unwrap();
+    for (a, b) in recomputed.eigenvalues.iter().zip(&b.eigenvalues) {
+        assert!((a - b).abs() <= 1e-9 * b.abs().max(1.0), "{a} vs {b}");
+    }
     // A cache that cannot be written is a warning: the basis is still computed and printed.
     let blocked = d.join("not-a-dir");
     std::fs::write(&blocked, b"a file where the cache directory should be").unwrap();

@@ -137,7 +137,8 @@ impl BasisCache {
 
     /// The cached basis for `key` with the fewest eigenpairs k' ≥ k among those computed with a
     /// tolerance ≤ `tol`, truncated to k. Unreadable, corrupt (CRC-32) or mismatched files are
-    /// skipped: the next candidate is tried, and `None` means the caller recomputes.
+    /// skipped with a warning on stderr: the next candidate is tried, and `None` means the caller
+    /// recomputes.
     pub fn get(&self, key: &str, n: usize, k: usize, tol: f64) -> Option<Basis> {
         let prefix = format!("{key}-tol");
         let mut candidates: Vec<(usize, PathBuf)> = Vec::new();
@@ -157,8 +158,14 @@ impl BasisCache {
         }
         candidates.sort();
         candidates.into_iter().find_map(|(_, path)| {
-            let basis = load_basis(&path).ok()?;
-            (basis.n() == n).then_some(())?;
+            // A damaged entry is a miss, said out loud (the basis is recomputed and rewritten).
+            let basis = load_basis(&path)
+                .and_then(|b| match b.n() == n {
+                    true => Ok(b),
+                    false => Err(Error::parse(&path, None, format!("{} rows, expected {n}", b.n()))),
+                })
+                .map_err(|e| eprintln!("warning: ignoring a damaged cached eigenbasis ({e}); recomputing"))
+                .ok()?;
             basis.truncate(k).ok()
         })
     }

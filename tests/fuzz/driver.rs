@@ -91,10 +91,37 @@ pub struct Target {
     pub run: fn(&[u8]) -> Option<String>,
 }
 
+/// Distinct error messages (their first 48 letters, quoted text removed) seen since the last [`fuzz`]
+/// started: a rough measure of how many error paths the mutations reach.
+static OUTCOMES: std::sync::Mutex<Option<std::collections::HashSet<String>>> = std::sync::Mutex::new(None);
+
+fn record_error(e: &funcorr::Error) {
+    let text = e.to_string();
+    // After an echoed input ("'…': reason") only the reason counts.
+    let text = text.rsplit_once("': ").map_or(text.as_str(), |(_, reason)| reason);
+    let mut kind = String::new();
+    let mut quoted = false;
+    for c in text.chars() {
+        if c == '\'' {
+            quoted = !quoted;
+        } else if !quoted && !c.is_ascii_digit() {
+            kind.push(c);
+        }
+    }
+    // The leading words name the check that failed; the tail echoes the input.
+    let kind: String = kind.chars().filter(|c| c.is_ascii_alphabetic() || *c == ' ').take(48).collect();
+    if let Ok(mut set) = OUTCOMES.lock() {
+        set.get_or_insert_with(Default::default).insert(kind);
+    }
+}
+
 /// A parse error must name the file it is about.
 fn names_file<T>(r: funcorr::Result<T>) -> Option<String> {
-    if r.is_ok() {
-        ACCEPTED.fetch_add(1, Ordering::Relaxed);
+    match &r {
+        Ok(_) => {
+            ACCEPTED.fetch_add(1, Ordering::Relaxed);
+        }
+        Err(e) => record_error(e),
     }
     match r {
         Err(e) if !e.to_string().contains("fuzz-input") => Some(format!("error without the file name: {e}")),
@@ -262,7 +289,10 @@ g body\nf 1/1/1 3/1/1 5/1/1\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf -4 -6 -1 -3\nusemtl sk
                     None
                 }
                 Err(e) if !e.to_string().contains("--data") => Some(format!("error without the option name: {e}")),
-                _ => None,
+                Err(e) => {
+                    record_error(&e);
+                    None
+                }
             },
         },
     ]
@@ -498,6 +528,8 @@ pub struct Run {
     pub seconds: f64,
     /// Inputs the parser accepted (the rest were rejected with an error).
     pub accepted: u64,
+    /// Distinct error messages (first 48 letters, quoted text removed) of the rejected inputs.
+    pub distinct_errors: usize,
     pub failures: Vec<Failure>,
 }
 
@@ -507,6 +539,9 @@ pub fn fuzz(target: &Target, inputs: u64, seed: u64) -> Run {
     let mut rng = Rng::new(seed ^ target.name.bytes().fold(0u64, |h, c| h.wrapping_mul(31).wrapping_add(c as u64)));
     let mut failures = Vec::new();
     ACCEPTED.store(0, Ordering::Relaxed);
+    if let Ok(mut set) = OUTCOMES.lock() {
+        *set = Some(Default::default());
+    }
     let t = Instant::now();
     // Mutations compound: most inputs derive from a seed, some from an earlier mutant.
     let mut pool: Vec<Vec<u8>> = target.seeds.clone();
@@ -536,7 +571,8 @@ pub fn fuzz(target: &Target, inputs: u64, seed: u64) -> Run {
         }
     }
     let accepted = ACCEPTED.load(Ordering::Relaxed) as u64;
-    Run { target: target.name, inputs, seconds: t.elapsed().as_secs_f64(), accepted, failures }
+    let distinct_errors = OUTCOMES.lock().map(|s| s.as_ref().map_or(0, |s| s.len())).unwrap_or(0);
+    Run { target: target.name, inputs, seconds: t.elapsed().as_secs_f64(), accepted, distinct_errors, failures }
 }
 
 /// Silences the default panic message while fuzzing (panics are caught and reported).
