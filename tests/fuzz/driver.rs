@@ -348,6 +348,8 @@ const DICTIONARY: &[&str] = &[
     "2147483648",
     "4294967295",
     "4294967296",
+    "100000000",
+    "134217727",
     "18446744073709551615",
     "18446744073709551616",
     "99999999999999999999999",
@@ -402,6 +404,10 @@ const NUMBERS: &[&str] = &[
     "1.5",
     "-3",
     "1e5",
+    // Counts just below the record cap: a reader that reserves by them allocates gigabytes.
+    "100000000",
+    "134217727",
+    "5000000",
 ];
 
 /// Applies 1–8 random mutations to `input`.
