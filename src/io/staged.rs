@@ -45,6 +45,7 @@ impl StagedDir {
         use std::sync::atomic::{AtomicU64, Ordering};
         static COUNTER: AtomicU64 = AtomicU64::new(0);
         std::fs::create_dir_all(target).map_err(|e| Error::io(target, e))?;
+        remove_dead_staging(target);
         let mut attempt = 0;
         loop {
             let n = COUNTER.fetch_add(1, Ordering::Relaxed);
@@ -250,6 +251,26 @@ impl Drop for StagedFiles {
     }
 }
 
+/// Removes the staging directories that runs killed before publishing left in `target`
+/// (`.funcorr-staging.<pid>-<n>` whose process no longer exists). Only where `/proc` tells
+/// which processes exist (Linux); elsewhere they stay, hidden and harmless.
+fn remove_dead_staging(target: &Path) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(target) else { return };
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some(pid) = name.strip_prefix(".funcorr-staging.").and_then(|r| r.split_once('-')).map(|(p, _)| p) else {
+            continue;
+        };
+        let alive = pid.parse::<u32>().is_ok_and(|p| Path::new(&format!("/proc/{p}")).exists());
+        if !alive && entry.file_type().is_ok_and(|t| t.is_dir()) {
+            let _ = remove_tree(&entry.path());
+        }
+    }
+}
+
 fn remove_tree(dir: &Path) -> std::io::Result<()> {
     std::fs::remove_dir_all(dir)
 }
@@ -332,6 +353,21 @@ mod tests {
         }
         let entries: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
         assert!(entries.is_empty(), "left behind: {entries:?}");
+    }
+
+    #[test]
+    fn staging_left_by_a_killed_run_is_removed_by_the_next_run() {
+        let dir = tmp_dir("staged_killed");
+        // pid 0 is never a user process; the live one is ours.
+        let dead = dir.join(".funcorr-staging.0-3");
+        let live = dir.join(format!(".funcorr-staging.{}-999", std::process::id()));
+        for d in [&dead, &live] {
+            write(&d.join("map.txt"), "partial");
+        }
+        let s = StagedDir::create(&dir).unwrap();
+        s.publish().unwrap();
+        assert!(!dead.exists() || !Path::new("/proc/self").exists(), "a dead run's staging stayed");
+        assert!(live.exists(), "a live run's staging was removed");
     }
 
     #[test]
