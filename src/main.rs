@@ -1448,8 +1448,15 @@ fn match_shapes(args: &MatchArgs) -> Result<()> {
     if let Some(&bad) = args.soft.iter().find(|&&i| i >= x.n_vertices()) {
         return Err(Error::invalid("--soft", format!("vertex {bad} of X does not exist (n = {})", x.n_vertices())));
     }
-    let px = prepared_shape(x, &args.x, &args.lap, &args.cache, basis_k, &mut st)?;
-    let py = prepared_shape(y, &args.y, &args.lap, &args.cache, basis_k, &mut st)?;
+    // The two shapes' Laplacians and bases are independent: prepared side by side.
+    let (mut stx, mut sty) = (Stages { quiet: args.quiet, parts: vec![] }, Stages { quiet: args.quiet, parts: vec![] });
+    let (px, py) = rayon::join(
+        || prepared_shape(x, &args.x, &args.lap, &args.cache, basis_k, &mut stx),
+        || prepared_shape(y, &args.y, &args.lap, &args.cache, basis_k, &mut sty),
+    );
+    let (px, py) = (px?, py?);
+    st.parts.extend(stx.parts.into_iter().map(|s| format!("X {s}")));
+    st.parts.extend(sty.parts.into_iter().map(|s| format!("Y {s}")));
     let (f, g) = st.run("data", || {
         pair_data(&args.data, (&px.shape, &px.laplacian, &px.basis), (&py.shape, &py.laplacian, &py.basis), &args.seg)
     })?;

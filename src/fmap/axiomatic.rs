@@ -136,7 +136,24 @@ pub struct AxiomaticReport {
 /// docs). Errors: bases smaller than k, descriptors of different column counts or sizes, the
 /// orientation term without face gradients, and those of [`Energy::new`].
 pub fn axiomatic(x: &ShapeData, y: &ShapeData, opts: &AxiomaticOptions) -> Result<(Mat<f64>, AxiomaticReport)> {
-    let k = opts.k;
+    Ok(axiomatic_sizes(x, y, opts, &[opts.k])?.remove(0))
+}
+
+/// [`axiomatic`] at several sizes `ks` (`opts.k` is ignored): the descriptor coefficients and
+/// operators are computed once, at the largest size, and their leading blocks serve the smaller
+/// ones ([`SpectralSide::leading`]); the fits run in parallel. Returns one (C, report) per size,
+/// in the order of `ks`.
+pub fn axiomatic_sizes(
+    x: &ShapeData,
+    y: &ShapeData,
+    opts: &AxiomaticOptions,
+    ks: &[usize],
+) -> Result<Vec<(Mat<f64>, AxiomaticReport)>> {
+    use rayon::prelude::*;
+    let k = ks.iter().copied().max().ok_or_else(|| Error::invalid("k", "need at least one size"))?;
+    if ks.contains(&0) {
+        return Err(Error::invalid("k", "sizes must be at least 1"));
+    }
     let w = &opts.weights;
     let orient = w.orientation > 0.0 && opts.orientation != Orientation::Ignore;
     let comm = w.commutativity > 0.0;
@@ -148,12 +165,52 @@ pub fn axiomatic(x: &ShapeData, y: &ShapeData, opts: &AxiomaticOptions) -> Resul
     }
     let sx = spectral_side(x, k, comm, orient, opts.unit_gradients, "X")?;
     let sy = spectral_side(y, k, comm, orient, opts.unit_gradients, "Y")?;
-    let energy = Energy::new(&sx, &sy, w, opts.mask, opts.orientation)?;
-    let c = if opts.fix_constant {
-        energy.solve_with_first_column(&constant_column(x.basis, y.basis, k))?
-    } else {
-        energy.solve()?
-    };
-    let report = AxiomaticReport { terms: energy.terms(c.as_ref()), energy: energy.value(c.as_ref()) };
-    Ok((c, report))
+    ks.par_iter()
+        .map(|&k| {
+            let (sx, sy) = (sx.leading(k), sy.leading(k));
+            let energy = Energy::new(&sx, &sy, w, opts.mask, opts.orientation)?;
+            let c = if opts.fix_constant {
+                energy.solve_with_first_column(&constant_column(x.basis, y.basis, k))?
+            } else {
+                energy.solve()?
+            };
+            let report = AxiomaticReport { terms: energy.terms(c.as_ref()), energy: energy.value(c.as_ref()) };
+            Ok((c, report))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spectral::{eigen_basis, SpectralOptions};
+
+    #[test]
+    fn several_sizes_at_once_equal_one_fit_per_size() {
+        let mesh = crate::primitives::bumpy_sphere(2);
+        let lap = crate::laplacian::cotangent(&mesh).unwrap();
+        let basis = eigen_basis(&lap, &SpectralOptions::new(14), None).unwrap().0;
+        let moved = crate::primitives::bumpy_sphere(2).map_vertices(|p| [p[0] * 1.1, p[1], p[2] * 0.95]).unwrap();
+        let lap_y = crate::laplacian::cotangent(&moved).unwrap();
+        let basis_y = eigen_basis(&lap_y, &SpectralOptions::new(14), None).unwrap().0;
+        let (dx, dy) = (
+            crate::descriptors::signatures::wks(&basis, 6, true).unwrap(),
+            crate::descriptors::signatures::wks(&basis_y, 6, true).unwrap(),
+        );
+        let (gx, gy) = (FaceGradients::new(&mesh).unwrap(), FaceGradients::new(&moved).unwrap());
+        let x = ShapeData { basis: &basis, gradients: Some(&gx), descriptors: &dx };
+        let y = ShapeData { basis: &basis_y, gradients: Some(&gy), descriptors: &dy };
+        let opts = AxiomaticOptions::default();
+        let all = axiomatic_sizes(&x, &y, &opts, &[5, 12, 8]).unwrap();
+        for ((c, report), k) in all.iter().zip([5, 12, 8]) {
+            let (c1, r1) = axiomatic(&x, &y, &AxiomaticOptions { k, ..opts }).unwrap();
+            assert_eq!((c.nrows(), c.ncols()), (k, k));
+            let diff = (0..k).flat_map(|i| (0..k).map(move |j| (i, j))).map(|(i, j)| (c[(i, j)] - c1[(i, j)]).abs());
+            let scale = (0..k).map(|i| c1[(i, i)].abs()).fold(0.0, f64::max);
+            assert!(diff.fold(0.0, f64::max) <= 1e-9 * scale, "k = {k}");
+            assert!((report.energy - r1.energy).abs() <= 1e-9 * r1.energy.abs().max(1e-12), "k = {k}");
+        }
+        assert!(axiomatic_sizes(&x, &y, &opts, &[]).is_err());
+        assert!(axiomatic_sizes(&x, &y, &opts, &[0, 4]).is_err());
+    }
 }

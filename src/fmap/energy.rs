@@ -171,6 +171,24 @@ pub struct SpectralSide {
     pub orientation: Vec<Mat<f64>>,
 }
 
+impl SpectralSide {
+    /// The same quantities in the first `k` eigenfunctions: the first k rows of the coefficients
+    /// and eigenvalues, the leading k × k block of every operator (each is Φᵀ M Φ for a matrix M
+    /// that does not depend on the basis size, so its leading block is the operator of Φ's first
+    /// k columns). Lets one pass over the shape serve every candidate size. Requires k ≤ the
+    /// current size.
+    pub fn leading(&self, k: usize) -> SpectralSide {
+        let k = k.min(self.eigenvalues.len());
+        let block = |m: &Mat<f64>| m.submatrix(0, 0, k, k).to_owned();
+        SpectralSide {
+            coefficients: self.coefficients.subrows(0, k).to_owned(),
+            eigenvalues: self.eigenvalues[..k].to_vec(),
+            multiplication: self.multiplication.iter().map(block).collect(),
+            orientation: self.orientation.iter().map(block).collect(),
+        }
+    }
+}
+
 /// The assembled energy E(C) of the module docs for one pair of shapes.
 #[derive(Clone, Debug)]
 pub struct Energy {

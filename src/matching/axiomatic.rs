@@ -18,11 +18,12 @@
 //! C_yx (k × k, functions on Y → functions on X).
 
 use faer::Mat;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::descriptors::{self, Descriptors};
 use crate::error::{Error, Result};
-use crate::fmap::axiomatic::{axiomatic, AxiomaticOptions, ShapeData};
+use crate::fmap::axiomatic::{axiomatic_sizes, AxiomaticOptions, ShapeData};
 use crate::fmap::energy::{EnergyWeights, Orientation};
 use crate::prepared::PreparedShape;
 use crate::refine::{self, Samples, ZoomOutOptions};
@@ -208,31 +209,32 @@ pub fn axiomatic_pipeline(
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
     // Candidates: C_yx is the map of the energy from Y's data to X's.
     let t = std::time::Instant::now();
-    let fits: Vec<Mat<f64>> = p
-        .candidates
-        .iter()
-        .map(|&k| axiomatic(&dy, &dx, &AxiomaticOptions { k, ..p.fit }).map(|r| r.0))
-        .collect::<Result<_>>()?;
+    let fits: Vec<Mat<f64>> = axiomatic_sizes(&dy, &dx, &p.fit, &p.candidates)?.into_iter().map(|r| r.0).collect();
     stages.push(("functional maps".to_string(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
     let probe_samples = samples_of(x, p.probe.samples)?;
     let scale = (y.basis.mass.iter().sum::<f64>() / x.basis.mass.iter().sum::<f64>()).sqrt();
-    let mut candidates = Vec::with_capacity(fits.len());
-    for (c, &k) in fits.iter().zip(&p.candidates) {
-        let map = if fits.len() == 1 {
-            None
-        } else {
-            let o = ZoomOutOptions { k_final: p.probe.k_final.max(k), step: p.probe.step };
-            Some(refine::zoomout(phi, psi, &probe_samples, c.as_ref(), &o)?.1)
-        };
-        let (distortion, orientation) = match (map, x.triangles(), y.positions(), y.normals()) {
-            (Some(m), Some(tx), Some(py), Some(ny)) => {
-                (refine::metric_distortion(tx, py, scale, &m)?, refine::orientation_agreement(tx, py, ny, &m)?)
-            }
-            _ => (f64::NAN, f64::NAN),
-        };
-        candidates.push(Candidate { k, distortion, orientation });
-    }
+    // The candidates are probed independently, in parallel.
+    let (tx, py, ny) = (x.triangles(), y.positions(), y.normals());
+    let candidates: Vec<Candidate> = fits
+        .par_iter()
+        .zip(p.candidates.par_iter())
+        .map(|(c, &k)| {
+            let map = if fits.len() == 1 {
+                None
+            } else {
+                let o = ZoomOutOptions { k_final: p.probe.k_final.max(k), step: p.probe.step };
+                Some(refine::zoomout(phi, psi, &probe_samples, c.as_ref(), &o)?.1)
+            };
+            let (distortion, orientation) = match (map, tx, py, ny) {
+                (Some(m), Some(tx), Some(py), Some(ny)) => {
+                    (refine::metric_distortion(tx, py, scale, &m)?, refine::orientation_agreement(tx, py, ny, &m)?)
+                }
+                _ => (f64::NAN, f64::NAN),
+            };
+            Ok(Candidate { k, distortion, orientation })
+        })
+        .collect::<Result<_>>()?;
     // The smallest distortion (the first candidate when none could be measured).
     let chosen = (0..candidates.len())
         .min_by(|&a, &b| {
