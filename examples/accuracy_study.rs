@@ -81,6 +81,7 @@ impl Variant {
                 "ns" => a.refine.samples = u(),
                 "zp" => a.probe.k_final = u(),
                 "bij" => a.bijective = f(),
+                "cp" => a.continue_probe = val == "1",
                 "nd" => nd = u(),
                 "kd" => kd = u(),
                 "ss" => ss = u(),

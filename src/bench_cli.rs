@@ -468,6 +468,12 @@ fn sweep(a: &SterileArgs, what: Sweep) -> Result<()> {
 }
 
 fn write_sweep(a: &SterileArgs, staged: StagedDir, name: &str, rows: &[SweepRow]) -> Result<()> {
+    let written = write_sweep_into(a, &staged, name, rows).map_err(|e| staged.attribute(e))?;
+    publish(staged, &written)
+}
+
+/// The sweep's table, JSON and plot, written into the staging directory; the paths written.
+fn write_sweep_into(a: &SterileArgs, staged: &StagedDir, name: &str, rows: &[SweepRow]) -> Result<Vec<PathBuf>> {
     let write = |file: String, text: String| -> Result<PathBuf> {
         let p = staged.join(file);
         funcorr::io::write_atomic(&p, text)?;
@@ -557,7 +563,7 @@ fn write_sweep(a: &SterileArgs, staged: StagedDir, name: &str, rows: &[SweepRow]
         let mu3 = r.mu3.map(|m| format!("{m:.0e}")).unwrap_or_else(|| "–".into());
         outln!("{:<12} {:>5} {:>9} {:>16.3} {:>9.1}", r.method, r.k, mu3, 100.0 * r.mean_soft_error, r.seconds);
     }
-    publish(staged, &written)
+    Ok(written)
 }
 
 fn figure7(a: &ReproBenchArgs) -> Result<()> {
@@ -580,7 +586,7 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
             run_benchmark(&ds, &pairs, &a.methods, data, &pipe, true, GeodesicsChoice::Exact, &a.cache, a.quiet)
         })?;
         let title = format!("{setting} data ({data}), {} pairs", pairs.len());
-        written.extend(report.write(&staged.join(setting), &title)?);
+        written.extend(report.write(&staged.join(setting), &title).map_err(|e| staged.attribute(e))?);
         table += &format!("## {title}\n\n{}\n", report.table());
         for m in report.summaries().into_iter().filter(|m| m.pairs > 0) {
             all.push((m, setting));
@@ -597,9 +603,10 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
     let title = format!("Figure 7: {} pairs of {}, symmetric, ICP", pairs.len(), a.dataset.display());
     let png = staged.join("benchmark.png");
     funcorr::viz::plot::cumulative_curves(&title, &funcorr::eval::standard_thresholds(), &curves)
-        .write_png(&png, 900, 640)?;
+        .write_png(&png, 900, 640)
+        .map_err(|e| staged.attribute(e))?;
     let md = staged.join("benchmark.md");
-    funcorr::io::write_atomic(&md, format!("# {title}\n\n{table}"))?;
+    funcorr::io::write_atomic(&md, format!("# {title}\n\n{table}")).map_err(|e| staged.attribute(e))?;
     written.extend([png, md]);
     outln!("{title}\n\n{table}");
     publish(staged, &written)

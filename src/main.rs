@@ -1337,7 +1337,6 @@ fn basis_demand(p: &PipelineArgs, opts: &funcorr::matching::MatchOptions) -> Res
     match opts.method {
         Method::Completion => {
             parts.push((opts.completion.k_prime, named(p.kprime.is_some(), "--kprime", opts.completion.k_prime)));
-            parts.push((opts.init_k, named(true, "--init-k", opts.init_k)));
         }
         Method::Axiomatic => {
             let a = &opts.axiomatic;

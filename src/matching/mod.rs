@@ -120,7 +120,8 @@ impl MatchOptions {
     /// The number of eigenpairs each basis must hold for these options.
     pub fn basis_size(&self) -> usize {
         let mut k = match self.method {
-            Method::Completion => self.completion.k_prime.max(self.init_k),
+            // The start is fitted at min(init_k, k', k): no eigenpairs beyond k'.
+            Method::Completion => self.completion.k_prime,
             Method::Axiomatic => return self.axiomatic.basis_size(),
             _ => self.k,
         };
