@@ -131,17 +131,12 @@ pub fn write_atomic(path: impl AsRef<Path>, contents: impl AsRef<[u8]>) -> Resul
 /// own temporary file, so all succeed and the last rename wins with a complete file; on failure
 /// the temporary file is removed and `path` is untouched.
 pub(crate) fn write_file(path: &Path, f: impl FnOnce(&mut BufWriter<File>) -> Result<()>) -> Result<()> {
-    use std::sync::atomic::{AtomicU64, Ordering};
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
     let (file, tmp) = {
         let mut attempt = 0;
         loop {
             // Unique among live writers; a stale file of a dead process with the same pid is
             // skipped by the retry with the next counter value.
-            let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-            let tmp = dir.join(format!(".{name}.{}-{n}.tmp", std::process::id()));
+            let tmp = temporary_beside(path, "tmp");
             match std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
                 Ok(file) => break (file, tmp),
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && attempt < 100 => attempt += 1,
@@ -180,6 +175,18 @@ pub(crate) fn check_records(len: usize, what: &str, path: &Path, line: Option<us
         return Err(Error::parse(path, line, format!("expected at most {MAX_RECORDS} {what}, found more")));
     }
     Ok(())
+}
+
+/// A hidden name for a temporary file in `path`'s directory (so that renaming it over `path`
+/// stays on one file system): `.<name>.<pid>-<counter>.<suffix>`, the counter shared by every
+/// caller in the process, so no two calls return the same name.
+pub(crate) fn temporary_beside(path: &Path, suffix: &str) -> std::path::PathBuf {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    dir.join(format!(".{name}.{}-{n}.{suffix}", std::process::id()))
 }
 
 /// Capacity to reserve for `n` records announced by an untrusted header: at most `limit`.

@@ -28,12 +28,11 @@ const MAX_MANIFEST_BYTES: u64 = 64 << 20;
 
 /// An output directory being written: files go into [`StagedDir::path`] and appear in the
 /// target directory only when [`StagedDir::publish`] succeeds (see the module docs). Dropping
-/// it without publishing removes the staging directory.
+/// it (published or not) removes the staging directory.
 #[derive(Debug)]
 pub struct StagedDir {
     target: PathBuf,
     staging: PathBuf,
-    published: bool,
 }
 
 impl StagedDir {
@@ -51,7 +50,7 @@ impl StagedDir {
             let n = COUNTER.fetch_add(1, Ordering::Relaxed);
             let staging = target.join(format!(".funcorr-staging.{}-{n}", std::process::id()));
             match std::fs::create_dir(&staging) {
-                Ok(()) => return Ok(StagedDir { target: target.to_path_buf(), staging, published: false }),
+                Ok(()) => return Ok(StagedDir { target: target.to_path_buf(), staging }),
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && attempt < 100 => attempt += 1,
                 Err(e) => return Err(Error::io(target, e)),
             }
@@ -66,11 +65,6 @@ impl StagedDir {
     /// `path().join(rel)`: where to write the output that will be published as `target/rel`.
     pub fn join(&self, rel: impl AsRef<Path>) -> PathBuf {
         self.staging.join(rel)
-    }
-
-    /// The target directory.
-    pub fn target(&self) -> &Path {
-        &self.target
     }
 
     /// Where a path inside the staging directory ends up after publishing (other paths are
@@ -107,7 +101,7 @@ impl StagedDir {
     ///
     /// Errors: [`Error::Io`] naming the file that could not be moved or deleted; the manifest
     /// is then absent, which marks the directory as incomplete.
-    pub fn publish(mut self) -> Result<Vec<String>> {
+    pub fn publish(self) -> Result<Vec<String>> {
         let files = staged_files(&self.staging)?;
         let lock_path = self.target.join(".funcorr.lock");
         let lock = std::fs::OpenOptions::new()
@@ -154,7 +148,7 @@ impl StagedDir {
             }
             std::fs::rename(&from, &to).map_err(|e| Error::io(&to, e))?;
         }
-        for rel in previous.iter().filter(|r| !files.contains(r)) {
+        for rel in previous.iter().filter(|r| files.binary_search(r).is_err()) {
             let stale = self.target.join(rel);
             match std::fs::symlink_metadata(&stale) {
                 Ok(m) if m.is_file() => std::fs::remove_file(&stale).map_err(|e| Error::io(&stale, e))?,
@@ -175,18 +169,15 @@ impl StagedDir {
             "files": files,
         });
         super::write_atomic(&manifest, serde_json::to_string_pretty(&json).expect("plain JSON") + "\n")?;
-        self.published = true;
-        let _ = remove_tree(&self.staging);
         drop(lock);
+        // `self` drops on return: the (now empty) staging directory goes.
         Ok(files)
     }
 }
 
 impl Drop for StagedDir {
     fn drop(&mut self) {
-        if !self.published {
-            let _ = remove_tree(&self.staging);
-        }
+        let _ = std::fs::remove_dir_all(&self.staging);
     }
 }
 
@@ -208,12 +199,7 @@ impl StagedFiles {
     /// The temporary path to write the future `path` to: `.<name>.<pid>-<counter>.staged` in the
     /// same directory (so that the final rename stays on one file system).
     pub fn stage(&mut self, path: &Path) -> PathBuf {
-        use std::sync::atomic::{AtomicU64, Ordering};
-        static COUNTER: AtomicU64 = AtomicU64::new(0);
-        let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-        let tmp = dir.join(format!(".{name}.{}-{n}.staged", std::process::id()));
+        let tmp = super::temporary_beside(path, "staged");
         self.pending.push((tmp.clone(), path.to_path_buf()));
         tmp
     }
@@ -266,13 +252,9 @@ fn remove_dead_staging(target: &Path) {
         };
         let alive = pid.parse::<u32>().is_ok_and(|p| Path::new(&format!("/proc/{p}")).exists());
         if !alive && entry.file_type().is_ok_and(|t| t.is_dir()) {
-            let _ = remove_tree(&entry.path());
+            let _ = std::fs::remove_dir_all(entry.path());
         }
     }
-}
-
-fn remove_tree(dir: &Path) -> std::io::Result<()> {
-    std::fs::remove_dir_all(dir)
 }
 
 /// The regular files under `dir`, as sorted relative paths with `/` separators.
