@@ -16,7 +16,7 @@
 //! `mask=std|res`, `orient=p|r|i`, `ug=0|1` unit gradients, `signed=N`, `nd=N` WKS count,
 //! `kd=N` WKS eigenpairs, `ss=N` keep every ss-th WKS, `zo=K` final ZoomOut size (0 none),
 //! `zs=S` its step, `ns=N` its samples, `zp=K` probe size, `bij=W` the bijective ZoomOut with
-//! bijectivity weight W instead of ZoomOut.
+//! bijectivity weight W instead of ZoomOut, `pol=N` rounds of the bijective polish (0 none).
 //!
 //! Point clouds: `CLOUD=y` (Y given as its vertices), `CLOUD=both`; `RESAMPLE=N` draws N points
 //! uniformly on the surface instead (vertices not shared). Errors are then measured on Y's mesh
@@ -82,6 +82,7 @@ impl Variant {
                 "zp" => a.probe.k_final = u(),
                 "bij" => a.bijective = f(),
                 "cp" => a.continue_probe = val == "1",
+                "pol" => a.polish = u(),
                 "nd" => nd = u(),
                 "kd" => kd = u(),
                 "ss" => ss = u(),

@@ -444,6 +444,10 @@ struct PipelineArgs {
     /// vertex).
     #[arg(long, default_value_t = 2000)]
     zoomout_samples: usize,
+    /// Rounds of the axiomatic method's bijective polish after ZoomOut (both point maps and both
+    /// functional maps with the coupling and bijectivity terms of Ren et al. 2021; 0: none).
+    #[arg(long, default_value_t = 1)]
+    polish: usize,
     /// Which maps the axiomatic method looks for (orientation term and signed descriptors).
     #[arg(long, value_enum, default_value = "preserve")]
     orientation: OrientationChoice,
@@ -1271,6 +1275,7 @@ fn pipeline_options(p: &PipelineArgs, method: MethodChoice, rich: bool) -> Resul
             a.refine.step = s;
         }
         a.refine.samples = p.zoomout_samples;
+        a.polish = p.polish;
         for (flag, v) in [
             ("--w-descriptors", p.w_descriptors),
             ("--w-laplacian", p.w_laplacian),
@@ -1736,8 +1741,17 @@ fn describe(args: &MatchArgs, opts: &funcorr::matching::MatchOptions) -> String 
         Method::Axiomatic => {
             let a = &opts.axiomatic;
             return format!(
-                "data {} + {} signed, axiomatic functional maps (k = {:?}, orientation {:?}), best of the candidates after ZoomOut to {}, ZoomOut to {}",
-                args.data, a.signed, a.candidates, a.fit.orientation, a.probe.k_final, a.refine.k_final
+                "data {} + {} signed, axiomatic functional maps (k = {:?}, orientation {:?}), best of the candidates after ZoomOut to {}, ZoomOut to {}{}",
+                args.data,
+                a.signed,
+                a.candidates,
+                a.fit.orientation,
+                a.probe.k_final,
+                a.refine.k_final,
+                match a.polish {
+                    0 => String::new(),
+                    r => format!(", {r} round(s) of bijective polish"),
+                }
             );
         }
         Method::Fmap if opts.commutativity > 0.0 => {

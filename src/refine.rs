@@ -328,7 +328,8 @@ fn bijective_fmap(
     Ok(llt.solve(&rhs))
 }
 
-/// The point map X → Y of the bijective refinement on the query rows of X: π(i) minimizes
+/// The point map X → Y of the bijective refinement on the query rows of X (`rows`, or all),
+/// among the reference rows of Y (`refs`, or all): π(i) minimizes
 /// ‖Φ_i − (Ψ C_yxᵀ)_j‖² + ‖(Φ C_yx)_i − Ψ_j‖² + w ‖Φ_i − (Ψ C_xy)_j‖² (orthogonality, coupling
 /// and bijectivity terms; each separates over the rows of Π).
 fn bijective_map(
@@ -338,15 +339,27 @@ fn bijective_map(
     c_xy: MatRef<f64>,
     w: f64,
     rows: Option<&[usize]>,
+    refs: Option<&[usize]>,
 ) -> Result<Vec<usize>> {
     let k = c_yx.nrows();
     let (phi, psi) = (phi.subcols(0, k), psi.subcols(0, k));
     let sw = w.sqrt();
     let (psi_ct, phi_c, psi_b) = (mul(psi, c_yx.transpose()), mul(phi, c_yx), mul(psi, c_xy));
-    let reference = Mat::from_fn(psi.nrows(), 3 * k, |j, a| match a / k {
-        0 => psi_ct[(j, a)],
-        1 => psi[(j, a - k)],
-        _ => sw * psi_b[(j, a - 2 * k)],
+    let all_y: Vec<usize>;
+    let refs = match refs {
+        Some(r) => r,
+        None => {
+            all_y = (0..psi.nrows()).collect();
+            &all_y
+        }
+    };
+    let reference = Mat::from_fn(refs.len(), 3 * k, |t, a| {
+        let j = refs[t];
+        match a / k {
+            0 => psi_ct[(j, a)],
+            1 => psi[(j, a - k)],
+            _ => sw * psi_b[(j, a - 2 * k)],
+        }
     });
     let all: Vec<usize>;
     let r = match rows {
@@ -361,7 +374,7 @@ fn bijective_map(
         1 => phi_c[(r[s], a - k)],
         _ => sw * phi[(r[s], a - 2 * k)],
     });
-    nearest_neighbors(reference.as_ref(), query.as_ref())
+    Ok(nearest_neighbors(reference.as_ref(), query.as_ref())?.into_iter().map(|t| refs[t]).collect())
 }
 
 /// Bijective ZoomOut: the discrete solver of Ren, Melzi, Wonka, Ovsjanikov 2021 with its
@@ -402,15 +415,59 @@ pub fn bijective_zoomout(
     let (mut c_yx, mut c_xy) = (c_yx0.to_owned(), c_xy0.to_owned());
     let mut k = k0;
     while k < kf {
-        let map_xy = bijective_map(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, Some(&sx.vertices))?;
-        let map_yx = bijective_map(psi, phi, c_xy.as_ref(), c_yx.as_ref(), w, Some(&sy.vertices))?;
+        let map_xy = bijective_map(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, Some(&sx.vertices), None)?;
+        let map_yx = bijective_map(psi, phi, c_xy.as_ref(), c_yx.as_ref(), w, Some(&sy.vertices), None)?;
         k = (k + opts.step).min(kf);
         c_yx = bijective_fmap(phi, psi, sx, &map_xy, sy, &map_yx, k, w)?;
         c_xy = bijective_fmap(psi, phi, sy, &map_yx, sx, &map_xy, k, w)?;
     }
-    let map_xy = bijective_map(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, None)?;
-    let map_yx = bijective_map(psi, phi, c_xy.as_ref(), c_yx.as_ref(), w, None)?;
+    let map_xy = bijective_map(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, None, None)?;
+    let map_yx = bijective_map(psi, phi, c_xy.as_ref(), c_yx.as_ref(), w, None, None)?;
     Ok((c_yx, map_xy, map_yx))
+}
+
+/// Bijectivity weight of [`bijective_polish`] (Ren et al. 2021 weigh the bijectivity and
+/// coupling terms equally).
+pub const POLISH_BIJECTIVITY: f64 = 1.0;
+
+/// Bijective polish of a refined map (the discrete solver of Ren, Melzi, Wonka, Ovsjanikov 2021
+/// at a fixed size): from C_yx (K × K, e.g. ZoomOut's result) and C_xy = C_yxᵀ (the inverse of an
+/// orthonormal pull-back), `rounds` alternations of both point maps on the samples of each shape
+/// (samples of X matched to samples of Y and back, [`bijective_map`] with weight
+/// [`POLISH_BIJECTIVITY`]) and both functional maps ([`bijective_fmap`]); then the point map of
+/// every vertex of X with the orthogonality, coupling and bijectivity terms. On every faust_r
+/// pair one round after ZoomOut lowers the mean error on 64 of 97 pairs and raises it on 30, by
+/// at most 0.1 ×100 (EXPERIMENTS.md). Returns (C_yx, map_xy on every vertex of X).
+pub fn bijective_polish(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    sx: &Samples,
+    sy: &Samples,
+    c_yx: MatRef<f64>,
+    rounds: usize,
+) -> Result<(Mat<f64>, Vec<usize>)> {
+    let k = c_yx.nrows();
+    if c_yx.ncols() != k || k == 0 || k > phi.ncols() || k > psi.ncols() {
+        return Err(Error::invalid(
+            "bijective polish",
+            format!(
+                "need a square start no larger than the bases ({}, {}), got {k}×{}",
+                phi.ncols(),
+                psi.ncols(),
+                c_yx.ncols()
+            ),
+        ));
+    }
+    let w = POLISH_BIJECTIVITY;
+    let (mut c_yx, mut c_xy) = (c_yx.to_owned(), c_yx.transpose().to_owned());
+    for _ in 0..rounds {
+        let map_xy = bijective_map(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, Some(&sx.vertices), Some(&sy.vertices))?;
+        let map_yx = bijective_map(psi, phi, c_xy.as_ref(), c_yx.as_ref(), w, Some(&sy.vertices), Some(&sx.vertices))?;
+        c_yx = bijective_fmap(phi, psi, sx, &map_xy, sy, &map_yx, k, w)?;
+        c_xy = bijective_fmap(psi, phi, sy, &map_yx, sx, &map_xy, k, w)?;
+    }
+    let map_xy = bijective_map(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, None, None)?;
+    Ok((c_yx, map_xy))
 }
 
 /// Orientation agreement of a point map X → Y, in [−1, 1]: the area-weighted mean over the
@@ -598,6 +655,36 @@ mod tests {
         let nm: Vec<[f64; 3]> = normals.iter().map(|p| [-p[0], p[1], p[2]]).collect();
         let s = orientation_agreement(&x, &ym, &nm, &map).unwrap();
         assert!(s < -0.99, "mirrored agreement {s}");
+    }
+
+    #[test]
+    fn bijective_polish_repairs_a_noisy_map() {
+        let x = bumpy_sphere(3);
+        let n = x.n_vertices();
+        let perm: Vec<usize> = (0..n).map(|i| (i * 101 + 7) % n).collect();
+        let mut inv = vec![0; n];
+        for (i, &p) in perm.iter().enumerate() {
+            inv[p] = i;
+        }
+        let y = x.permuted(&inv).unwrap();
+        let basis = |m: &TriMesh| eigen_basis(&cotangent(m).unwrap(), &SpectralOptions::new(30), None).unwrap().0;
+        let (bx, by) = (basis(&x), basis(&y));
+        let (phi, psi) = (bx.eigenvectors.as_ref(), by.eigenvectors.as_ref());
+        let truth = pullback(phi, psi, &Samples::all(&bx.mass), &perm, 30, 30).unwrap();
+        // A deterministic perturbation of the true map.
+        let noisy = Mat::from_fn(30, 30, |i, j| truth[(i, j)] + 0.15 * (((i * 31 + j * 17) % 13) as f64 / 6.0 - 1.0));
+        let agreement = |m: &[usize]| m.iter().zip(&perm).filter(|(a, b)| a == b).count() as f64 / n as f64;
+        let plain = agreement(&map_of_pullback(phi, psi, noisy.as_ref(), None).unwrap());
+        assert!(plain < 0.95, "the perturbation must break the plain read-off ({plain})");
+        let (sx, sy) = (
+            farthest_point_samples(x.vertices(), &bx.mass, 300).unwrap(),
+            farthest_point_samples(y.vertices(), &by.mass, 300).unwrap(),
+        );
+        let (c, map) = bijective_polish(phi, psi, &sx, &sy, noisy.as_ref(), 3).unwrap();
+        assert_eq!(c.nrows(), 30);
+        let polished = agreement(&map);
+        assert!(polished > 0.99 && polished > plain, "polish {polished}, plain read-off {plain}");
+        assert!(bijective_polish(phi, psi, &sx, &sy, noisy.submatrix(0, 0, 30, 20), 1).is_err());
     }
 
     #[test]
