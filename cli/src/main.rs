@@ -1624,10 +1624,10 @@ fn eval(args: &EvalArgs) -> Result<()> {
 /// Ground-truth template correspondences of the demo pair (1-based vertex ids; line i of X's file
 /// corresponds to line i of Y's; `.sym` is the left–right mirrored version).
 const DEMO_VTS: [&str; 4] = [
-    include_str!("../data/faust/tr_reg_000.vts"),
-    include_str!("../data/faust/tr_reg_001.vts"),
-    include_str!("../data/faust/tr_reg_000.sym.vts"),
-    include_str!("../data/faust/tr_reg_001.sym.vts"),
+    include_str!("../../data/faust/tr_reg_000.vts"),
+    include_str!("../../data/faust/tr_reg_001.vts"),
+    include_str!("../../data/faust/tr_reg_000.sym.vts"),
+    include_str!("../../data/faust/tr_reg_001.sym.vts"),
 ];
 
 /// Demo step: persistence segments of both shapes, matched by their signatures, checked against
@@ -1775,8 +1775,8 @@ fn describe(args: &MatchArgs, opts: &funcorr::matching::MatchOptions) -> String 
 
 /// The two bundled FAUST shapes (remeshed, ~5k vertices; Bogo et al. 2014, remeshed for
 /// Ren et al. 2018), embedded so that the demo runs from any directory.
-const DEMO_X: (&str, &[u8]) = ("tr_reg_000.off", include_bytes!("../data/faust/tr_reg_000.off"));
-const DEMO_Y: (&str, &[u8]) = ("tr_reg_001.off", include_bytes!("../data/faust/tr_reg_001.off"));
+const DEMO_X: (&str, &[u8]) = ("tr_reg_000.off", include_bytes!("../../data/faust/tr_reg_000.off"));
+const DEMO_Y: (&str, &[u8]) = ("tr_reg_001.off", include_bytes!("../../data/faust/tr_reg_001.off"));
 
 fn demo(target: &Path, k: usize) -> Result<()> {
     let staged = funcorr::io::staged::StagedDir::create(target)?;

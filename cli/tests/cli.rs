@@ -9,7 +9,7 @@ use funcorr::spectral::load_basis;
 const BIN: &str = env!("CARGO_BIN_EXE_funcorr");
 
 fn data(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/faust").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/faust").join(name)
 }
 
 /// A fresh temporary directory for one test.
@@ -837,7 +837,7 @@ fn csv(path: &Path) -> Vec<Vec<String>> {
 
 #[test]
 fn bench_on_the_bundled_data_set_writes_what_it_promises() {
-    let ds = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/faust");
+    let ds = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/faust");
     let out = tmp("bench");
     let o = out.to_str().unwrap();
     // Small sizes so that the four methods finish in seconds; both directions of the pair.
@@ -916,7 +916,7 @@ fn bench_on_the_bundled_data_set_writes_what_it_promises() {
 
 #[test]
 fn bench_rejects_bad_data_sets_and_options() {
-    let ds = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/faust");
+    let ds = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/faust");
     let d = ds.to_str().unwrap();
     let out = tmp("bench-bad");
     let o = out.to_str().unwrap();
@@ -943,7 +943,7 @@ fn bench_rejects_bad_data_sets_and_options() {
 
 #[test]
 fn reproduce_rank_and_l1_write_tables_and_plots() {
-    let ds = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/faust");
+    let ds = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/faust");
     let out = tmp("reproduce");
     let common = [
         "--dataset",
@@ -1034,7 +1034,7 @@ fn signature_data_without_a_count_use_the_defaults() {
     assert!(h.contains("100 WKS energies from the first 128 eigenpairs"), "{h}");
     let h = text(&run(&["bench", "--help"]).stdout);
     assert!(h.contains("`wks` alone: 100 energies from the first 128 eigenpairs, every 2nd"), "{h}");
-    let ds = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/faust");
+    let ds = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/faust");
     let out = d.join("bench");
     let args = ["bench", "--dataset", ds.to_str().unwrap(), "--methods", "fmap", "--data", "wks", "--limit", "1"];
     let r = run(&args.into_iter().chain(["-k", "20", "-q", "-o", out.to_str().unwrap()]).collect::<Vec<_>>());
