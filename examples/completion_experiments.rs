@@ -128,7 +128,17 @@ fn data(
 
 /// A named configuration.
 fn config(name: &str, q: usize) -> Result<MatchOptions> {
-    let mut o = MatchOptions { refine: Refine::None, zoomout_to: 150, zoomout_step: 5, ..MatchOptions::default() };
+    // The settings these experiments were run with (eq. (5) μ_c = 1e-3, the paper's completion
+    // options without the isometry prior, ICP at most 50 iterations).
+    let mut o = MatchOptions {
+        refine: Refine::None,
+        zoomout_to: 150,
+        zoomout_step: 5,
+        commutativity: 1e-3,
+        completion: funcorr::completion::CompletionOptions::paper(false, funcorr::completion::Scaling::Unit),
+        icp: funcorr::pointwise::IcpOptions::default(),
+        ..MatchOptions::for_method(Method::Fmap, false)
+    };
     let mut parts = name.split('+');
     let method = parts.next().unwrap_or("");
     match method {

@@ -53,7 +53,8 @@ fn completion_beats_eq5_with_scarce_data_at_the_same_rank() {
         let r = matching::run(&bx, &by, Some((&lx, &ly)), &f, &g, opts).unwrap();
         100.0 * summarize(&hard_errors(&r.map_xy, &gt, &geo, my.total_area()).unwrap()).mean
     };
-    let base = MatchOptions { refine: Refine::None, commutativity: 0.0, ..MatchOptions::default() };
+    let base =
+        MatchOptions { refine: Refine::None, commutativity: 0.0, ..MatchOptions::for_method(Method::Fmap, false) };
     let eq5 = error(&MatchOptions { method: Method::Fmap, k: 250, ..base.clone() });
     let mut comp = MatchOptions { method: Method::Completion, ..base };
     assert_eq!((comp.completion.k_prime, comp.completion.k), (350, 250)); // the paper's scarce-data setting

@@ -8,7 +8,7 @@ use std::time::Instant;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use funcorr::benchmark::{self, BenchMethod, BenchOptions, DataSpec, Dataset, Report};
-use funcorr::completion::{CompletionOptions, Form, Scaling};
+use funcorr::completion::{CompletionOptions, Form};
 use funcorr::experiments::Sterile;
 use funcorr::io::staged::StagedDir;
 use funcorr::viz::plot::{LinePlot, Series};
@@ -95,7 +95,7 @@ fn run_benchmark(
     pairs: &[(String, String)],
     methods: &[MethodChoice],
     data: DataSpec,
-    pipe: &PipelineArgs,
+    options: &dyn Fn(MethodChoice, bool) -> Result<funcorr::matching::MatchOptions>,
     symmetric: bool,
     geodesics: GeodesicsChoice,
     cache: &CacheArgs,
@@ -103,9 +103,7 @@ fn run_benchmark(
 ) -> Result<Report> {
     let methods = methods
         .iter()
-        .map(|&m| {
-            Ok(BenchMethod { name: method_name(m).to_string(), options: pipeline_options(pipe, m, data.is_rich())? })
-        })
+        .map(|&m| Ok(BenchMethod { name: method_name(m).to_string(), options: options(m, data.is_rich())? }))
         .collect::<Result<Vec<_>>>()?;
     let opts = BenchOptions { data, methods, symmetric, geodesics: geodesics.into(), cache: cache.cache() };
     let pb = stage_bar(quiet);
@@ -165,7 +163,7 @@ pub(crate) fn bench(args: &BenchArgs) -> Result<()> {
             &pairs,
             &args.methods,
             data,
-            &args.pipe,
+            &|m, rich| pipeline_options(&args.pipe, m, rich),
             !args.no_symmetric,
             args.geodesics,
             &args.cache,
@@ -351,11 +349,7 @@ struct SweepRow {
 }
 
 fn completion_options(a: &SterileArgs, k: usize, mu1: f64, mu3: f64) -> Result<CompletionOptions> {
-    let scaling = match a.scaling {
-        ScalingChoice::Paper => Scaling::Paper,
-        ScalingChoice::Unit => Scaling::Unit,
-    };
-    let mut o = CompletionOptions::paper(false, scaling);
+    let mut o = CompletionOptions::paper(false, a.scaling.into());
     (o.form, o.k_prime, o.k) = (Form::Subspace, a.kprime, k);
     let p = &mut o.params;
     p.mu1 = a.mu1.unwrap_or(mu1);
@@ -577,13 +571,16 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
     for (setting, data) in [("scarce", DataSpec::Segments { symmetric: true }), ("rich", DataSpec::Rich)] {
         // The paper's settings: k' = 350, k = 250 (scarce) and k' = 50, k = 30 (rich) for the
         // completion method, k for the baselines the same, ICP refinement.
-        let mut pipe = super::default_pipeline_args()?;
-        pipe.refine = Some(super::Refine::Icp);
-        pipe.max_iterations = a.max_iterations;
-        pipe.scaling = a.scaling;
-        pipe.completion_commutativity = a.completion_commutativity;
+        let options = |m: MethodChoice, rich: bool| -> Result<funcorr::matching::MatchOptions> {
+            let mut o = funcorr::matching::MatchOptions::for_method(m.into(), rich);
+            o.refine = funcorr::matching::Refine::Icp;
+            o.completion = funcorr::matching::completion_defaults(rich, a.scaling.into(), Form::Subspace);
+            o.completion.params.mu_comm = a.completion_commutativity;
+            o.completion.optimize.max_iterations = a.max_iterations;
+            Ok(o)
+        };
         let report = pool.install(|| {
-            run_benchmark(&ds, &pairs, &a.methods, data, &pipe, true, GeodesicsChoice::Exact, &a.cache, a.quiet)
+            run_benchmark(&ds, &pairs, &a.methods, data, &options, true, GeodesicsChoice::Exact, &a.cache, a.quiet)
         })?;
         let title = format!("{setting} data ({data}), {} pairs", pairs.len());
         written.extend(report.write(&staged.join(setting), &title).map_err(|e| staged.attribute(e))?);

@@ -286,6 +286,19 @@ enum MethodChoice {
     Completion,
 }
 
+impl From<MethodChoice> for funcorr::matching::Method {
+    fn from(m: MethodChoice) -> Self {
+        use funcorr::matching::Method;
+        match m {
+            MethodChoice::Axiomatic => Method::Axiomatic,
+            MethodChoice::Fmap => Method::Fmap,
+            MethodChoice::Pokrass => Method::Pokrass,
+            MethodChoice::Coupled => Method::Coupled,
+            MethodChoice::Completion => Method::Completion,
+        }
+    }
+}
+
 #[derive(Clone, Copy, PartialEq, ValueEnum)]
 enum OrientationChoice {
     /// Orientation-preserving maps (two scans of the same kind of object).
@@ -324,6 +337,15 @@ enum ScalingChoice {
     Paper,
 }
 
+impl From<ScalingChoice> for funcorr::completion::Scaling {
+    fn from(s: ScalingChoice) -> Self {
+        match s {
+            ScalingChoice::Unit => funcorr::completion::Scaling::Unit,
+            ScalingChoice::Paper => funcorr::completion::Scaling::Paper,
+        }
+    }
+}
+
 #[derive(Clone, Copy, PartialEq, ValueEnum)]
 enum ExtractChoice {
     /// Nearest neighbours of the rows of Φ_k' B among the rows of Ψ_k' A.
@@ -352,6 +374,17 @@ enum OptimizerChoice {
 
 /// Settings of the matching pipeline shared by `match` and `bench`: the method's parameters,
 /// the point-map extraction and the refinement.
+/// `funcorr match`'s default data, camera and image size (also the demo's).
+const DEFAULT_DATA: &str = "wks";
+const DEFAULT_VIEW: &str = "0,0";
+const DEFAULT_SIZE: &str = "1600x900";
+
+/// The library's defaults (what `funcorr match X Y` runs): the single source of the option
+/// defaults below.
+fn defaults() -> funcorr::matching::MatchOptions {
+    funcorr::matching::MatchOptions::default()
+}
+
 #[derive(clap::Args, Clone)]
 struct PipelineArgs {
     /// Form of the completion method.
@@ -393,11 +426,11 @@ struct PipelineArgs {
     /// Weight of the Laplacian-commutativity term (isometry prior) added to the completion
     /// objective; on by default because it won on the faust_r dev pairs (EXPERIMENTS.md);
     /// 0 gives the paper's pure form (11).
-    #[arg(long, default_value_t = 1e-2)]
+    #[arg(long, default_value_t = funcorr::matching::DEFAULT_COMPLETION_COMMUTATIVITY)]
     completion_commutativity: f64,
     /// Size of the leading block of C the completion's commutativity term acts on (0: all k');
     /// also the block of the axiomatic prior (--completion-prior).
-    #[arg(long, default_value_t = 50)]
+    #[arg(long, default_value_t = funcorr::matching::DEFAULT_COMPLETION_COMMUTATIVITY_K)]
     completion_commutativity_k: usize,
     /// Weight of the axiomatic prior added to the completion objective (0: off): the energy of
     /// the axiomatic method without its descriptor term — Laplacian commutativity with --mask,
@@ -409,16 +442,16 @@ struct PipelineArgs {
     #[arg(long, value_enum, default_value = "pad")]
     init: InitChoice,
     /// Size of the eq. (5) map that starts the completion method.
-    #[arg(long, default_value_t = 50)]
+    #[arg(long, default_value_t = defaults().init_k)]
     init_k: usize,
     /// Optimizer of the completion method (default: L-BFGS, RCG for --form fixed-rank).
     #[arg(long, value_enum)]
     optimizer: Option<OptimizerChoice>,
     /// Iteration cap of the completion optimizer.
-    #[arg(long, default_value_t = 300)]
+    #[arg(long, default_value_t = defaults().completion.optimize.max_iterations)]
     max_iterations: usize,
     /// Stop when the objective's relative decrease in one iteration is at most this.
-    #[arg(long, default_value_t = 1e-6)]
+    #[arg(long, default_value_t = defaults().completion.optimize.rel_tol)]
     rel_tol: f64,
     /// Point-map extraction of the completion method.
     #[arg(long, value_enum, default_value = "nn")]
@@ -428,10 +461,10 @@ struct PipelineArgs {
     #[arg(long, value_enum)]
     refine: Option<Refine>,
     /// Size of the map the refinement of the completion method starts from.
-    #[arg(long, default_value_t = 50)]
+    #[arg(long, default_value_t = defaults().refine_k)]
     refine_k: usize,
     /// Maximum number of ICP iterations.
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = defaults().icp.max_iterations)]
     icp_iterations: usize,
     /// Final size of ZoomOut (default: 110 for axiomatic, 150 for the other methods).
     #[arg(long)]
@@ -442,33 +475,33 @@ struct PipelineArgs {
     zoomout_step: Option<usize>,
     /// Farthest-point samples of X the axiomatic method's ZoomOut maps are computed on (0: every
     /// vertex).
-    #[arg(long, default_value_t = 2000)]
+    #[arg(long, default_value_t = defaults().axiomatic.refine.samples)]
     zoomout_samples: usize,
     /// Rounds of the axiomatic method's bijective polish after ZoomOut (both point maps and both
     /// functional maps with the coupling and bijectivity terms of Ren et al. 2021; 0: none).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = defaults().axiomatic.polish)]
     polish: usize,
     /// Which maps the axiomatic method looks for (orientation term and signed descriptors).
     #[arg(long, value_enum, default_value = "preserve")]
     orientation: OrientationChoice,
     /// Signed (orientation) descriptors the axiomatic method adds to the data.
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = defaults().axiomatic.signed)]
     signed: usize,
     /// Sizes k of the axiomatic method's candidate functional maps (the one with the least
     /// metric distortion after a short ZoomOut is kept; default 20,30,40,50, or -k alone).
     #[arg(long, value_delimiter = ',')]
     candidates: Option<Vec<usize>>,
     /// Weight of descriptor preservation in the axiomatic energy.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = defaults().axiomatic.fit.weights.descriptors)]
     w_descriptors: f64,
     /// Weight of Laplacian commutativity in the axiomatic energy.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, default_value_t = defaults().axiomatic.fit.weights.laplacian)]
     w_laplacian: f64,
     /// Weight of descriptor commutativity in the axiomatic energy.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = defaults().axiomatic.fit.weights.commutativity)]
     w_commutativity: f64,
     /// Weight of the orientation term in the axiomatic energy.
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(long, default_value_t = defaults().axiomatic.fit.weights.orientation)]
     w_orientation: f64,
     /// Laplacian-commutativity mask of the axiomatic energy.
     #[arg(long, value_enum, default_value = "resolvent")]
@@ -487,7 +520,7 @@ struct MatchArgs {
     /// agree between the files), `persistence`, `mser`, `landmarks:pairs.txt` (0-based `i j`
     /// per line), `rich` (100 WKS + 100 heat kernel maps localized on the persistence segments,
     /// the paper's rich data) or `rich:X.seg,Y.seg` (on given segments), or `matrix:F.npy,G.npy`.
-    #[arg(long, default_value = "wks")]
+    #[arg(long, default_value = DEFAULT_DATA)]
     data: String,
     /// Functional-map method.
     #[arg(long, value_enum, default_value = "axiomatic")]
@@ -502,11 +535,11 @@ struct MatchArgs {
     #[arg(long, value_delimiter = ',')]
     soft: Vec<usize>,
     /// Camera of render.png: azimuth,elevation in degrees (0,0: looking along −Z, Y up).
-    #[arg(long, default_value = "0,0")]
+    #[arg(long, default_value = DEFAULT_VIEW)]
     view: String,
     /// Size of render.png, WIDTHxHEIGHT pixels (each side ≤ 16384, at most 67,108,864 pixels in
     /// all, e.g. 8192x8192).
-    #[arg(long, default_value = "1600x900")]
+    #[arg(long, default_value = DEFAULT_SIZE)]
     size: String,
     /// Do not write render.png.
     #[arg(long)]
@@ -1160,27 +1193,27 @@ fn is_rich(spec: &str) -> bool {
 
 /// The library options of a pipeline (defaults per method and data, see `--help`).
 fn pipeline_options(p: &PipelineArgs, method: MethodChoice, rich: bool) -> Result<funcorr::matching::MatchOptions> {
-    use funcorr::completion::{self as comp, CompletionOptions, Form, Init, Optimizer, Scaling};
+    use funcorr::completion::{self as comp, Form, Init, Optimizer, Scaling};
     use funcorr::matching::{Extraction, MatchOptions, Method};
-    let scaling = match p.scaling {
-        ScalingChoice::Unit => Scaling::Unit,
-        ScalingChoice::Paper => Scaling::Paper,
-    };
+    let scaling: Scaling = p.scaling.into();
     let form = match p.form {
         FormChoice::Subspace => Form::Subspace,
         FormChoice::FixedRank => Form::FixedRank,
         FormChoice::LowRank => Form::LowRank,
         FormChoice::LowNorm => Form::LowNorm,
     };
+    let method: Method = method.into();
+    // The library's defaults for this method and data; the options given override them.
+    let base = MatchOptions::for_method(method, rich);
     // The form's own default weights; --mu1 … --xi override them below.
-    let mut completion = CompletionOptions::paper(rich, scaling).with_form(form);
+    let mut completion = funcorr::matching::completion_defaults(rich, scaling, form);
     if let Some(k) = p.k {
         completion.k = k;
     }
     if let Some(kp) = p.kprime {
         completion.k_prime = kp;
     }
-    if method == MethodChoice::Completion && !(1..=completion.k_prime).contains(&completion.k) {
+    if method == Method::Completion && !(1..=completion.k_prime).contains(&completion.k) {
         let (k, kp) = (completion.k, completion.k_prime);
         let src = |given: bool, flag: &str, v: usize| {
             if given {
@@ -1228,13 +1261,13 @@ fn pipeline_options(p: &PipelineArgs, method: MethodChoice, rich: bool) -> Resul
         rel_tol: p.rel_tol,
         ..comp::OptimizeOptions::default()
     };
-    let commutativity = p.commutativity.unwrap_or(if rich { 1e-3 } else { 0.0 });
+    let commutativity = p.commutativity.unwrap_or(base.commutativity);
     if !(commutativity.is_finite() && commutativity >= 0.0) {
         return Err(Error::invalid("--commutativity", "must be finite and ≥ 0"));
     }
     let axiomatic = {
         use funcorr::fmap::energy::{EnergyWeights, Mask, Orientation};
-        let mut a = funcorr::matching::axiomatic::AxiomaticPipeline::default();
+        let mut a = base.axiomatic.clone();
         a.fit.weights = EnergyWeights {
             descriptors: p.w_descriptors,
             laplacian: p.w_laplacian,
@@ -1258,7 +1291,7 @@ fn pipeline_options(p: &PipelineArgs, method: MethodChoice, rich: bool) -> Resul
         }
         match p.refine {
             Some(Refine::None) => a.refine.k_final = 0,
-            Some(Refine::Icp) if method == MethodChoice::Axiomatic => {
+            Some(Refine::Icp) if method == Method::Axiomatic => {
                 return Err(Error::invalid(
                     "--refine",
                     "the axiomatic method refines with ZoomOut (or none); ICP is for the other methods",
@@ -1295,14 +1328,8 @@ fn pipeline_options(p: &PipelineArgs, method: MethodChoice, rich: bool) -> Resul
         a
     };
     Ok(MatchOptions {
-        method: match method {
-            MethodChoice::Axiomatic => Method::Axiomatic,
-            MethodChoice::Fmap => Method::Fmap,
-            MethodChoice::Pokrass => Method::Pokrass,
-            MethodChoice::Coupled => Method::Coupled,
-            MethodChoice::Completion => Method::Completion,
-        },
-        k: p.k.unwrap_or(50),
+        method,
+        k: p.k.unwrap_or(base.k),
         commutativity,
         completion,
         init_k: p.init_k,
@@ -1311,17 +1338,18 @@ fn pipeline_options(p: &PipelineArgs, method: MethodChoice, rich: bool) -> Resul
             ExtractChoice::Argmax => Extraction::Argmax,
             ExtractChoice::Fmap => Extraction::Fmap,
         },
-        refine: match p.refine.unwrap_or(if rich { Refine::Zoomout } else { Refine::Icp }) {
-            Refine::None => funcorr::matching::Refine::None,
-            Refine::Icp => funcorr::matching::Refine::Icp,
-            Refine::Zoomout => funcorr::matching::Refine::Zoomout,
+        refine: match p.refine {
+            None => base.refine,
+            Some(Refine::None) => funcorr::matching::Refine::None,
+            Some(Refine::Icp) => funcorr::matching::Refine::Icp,
+            Some(Refine::Zoomout) => funcorr::matching::Refine::Zoomout,
         },
         refine_k: p.refine_k,
         icp: funcorr::pointwise::IcpOptions { max_iterations: p.icp_iterations },
-        zoomout_to: p.zoomout_to.unwrap_or(150),
-        zoomout_step: p.zoomout_step.unwrap_or(1),
+        zoomout_to: p.zoomout_to.unwrap_or(base.zoomout_to),
+        zoomout_step: p.zoomout_step.unwrap_or(base.zoomout_step),
         axiomatic,
-        ..MatchOptions::default()
+        ..base
     })
 }
 
@@ -1330,7 +1358,7 @@ fn pipeline_options(p: &PipelineArgs, method: MethodChoice, rich: bool) -> Resul
 /// an error naming the option to change. Errors when --kprime is given but smaller than what
 /// the other options need (the basis would silently be larger than asked).
 fn basis_demand(p: &PipelineArgs, opts: &funcorr::matching::MatchOptions) -> Result<(usize, String)> {
-    use funcorr::matching::{Method, Refine as R};
+    use funcorr::matching::{Method, Refine as R, DEFAULT_BASIS_SIZE};
     let named = |given: bool, flag: &str, v: usize| {
         if given {
             format!("{flag} {v}")
@@ -1369,8 +1397,8 @@ fn basis_demand(p: &PipelineArgs, opts: &funcorr::matching::MatchOptions) -> Res
             ),
         )),
         Some(kp) => Ok((kp, format!("--kprime {kp}"))),
-        None if need >= 200 => Ok((need, who)),
-        None => Ok((200, "--kprime (default 200)".into())),
+        None if need >= DEFAULT_BASIS_SIZE => Ok((need, who)),
+        None => Ok((DEFAULT_BASIS_SIZE, format!("--kprime (default {DEFAULT_BASIS_SIZE})"))),
     }
 }
 
@@ -1667,28 +1695,12 @@ fn demo_segments(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&TriMesh, 
     Ok(())
 }
 
-/// The defaults of `funcorr match`, from its own argument parser.
-fn default_match_args() -> Result<MatchArgs> {
-    match Cli::try_parse_from(["funcorr", "match", "X", "Y", "-o", "unused"])
-        .map_err(|e| Error::invalid("demo", e.to_string()))?
-        .command
-    {
-        Command::Match(args) => Ok(args),
-        _ => Err(Error::invalid("demo", "could not build the match defaults")),
-    }
-}
-
-/// The pipeline defaults of `funcorr match` (shared by `bench` and `reproduce`).
-fn default_pipeline_args() -> Result<PipelineArgs> {
-    Ok(default_match_args()?.pipe)
-}
-
 /// Demo step: the default `funcorr match` pipeline evaluated against the bundled ground truth;
 /// writes map.txt, X.ply, Y.ply and render.png.
 fn demo_match(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&TriMesh, &Basis)) -> Result<()> {
     use funcorr::eval::{hard_errors, summarize, GroundTruth};
-    let args = default_match_args()?;
-    let opts = match_options(&args)?;
+    // What `funcorr match X Y` runs: the library's defaults, data `wks`.
+    let opts = funcorr::matching::MatchOptions::default();
     let t = Instant::now();
     use funcorr::prepared::Surface;
     let px = funcorr::PreparedShape::from_parts(
@@ -1703,8 +1715,12 @@ fn demo_match(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&TriMesh, &Ba
         by.clone(),
         Some(Surface::Mesh),
     );
-    let seg = &args.seg;
-    let (f, g) = pair_data(&args.data, (&px.shape, &px.laplacian, bx), (&py.shape, &py.laplacian, by), seg)?;
+    // `--data wks` (the default): pyFM's WKS recipe.
+    let recipe = funcorr::descriptors::signatures::WksRecipe::default();
+    let (f, g) = (
+        funcorr::descriptors::signatures::wks_recipe(bx, &recipe)?,
+        funcorr::descriptors::signatures::wks_recipe(by, &recipe)?,
+    );
     let r = funcorr::matching::run_prepared(&px, &py, &f, &g, &opts)?;
     let (x, y) = (&px.shape, &py.shape);
     let seconds = t.elapsed().as_secs_f64();
@@ -1716,7 +1732,7 @@ fn demo_match(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&TriMesh, &Ba
     let plain = summarize(&hard_errors(&r.map_xy, &gt, &geo, my.total_area())?);
     let gt = GroundTruth { y_sym: Some(vts(3, my.n_vertices())?), ..gt };
     let sym = summarize(&hard_errors(&r.map_xy, &gt, &geo, my.total_area())?);
-    outln!("\nMatching X → Y with the defaults of `funcorr match` ({}): {seconds:.1} s", describe(&args, &opts));
+    outln!("\nMatching X → Y with the defaults of `funcorr match` ({}): {seconds:.1} s", describe(DEFAULT_DATA, &opts));
     for (name, secs) in &r.stages {
         outln!("  {name}: {secs:.2} s");
     }
@@ -1728,21 +1744,21 @@ fn demo_match(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&TriMesh, &Ba
     );
     outln!("  allowing the left-right flip: mean ×100 = {:.2}", 100.0 * sym.mean);
     write_map_files(out, &r.map_xy, false)?;
-    let view = funcorr::viz::View::parse(&args.view)?;
-    write_colour_transfer(out, x, y, &r.map_yx, Some((parse_size(&args.size)?, &view)))?;
+    let view = funcorr::viz::View::parse(DEFAULT_VIEW)?;
+    write_colour_transfer(out, x, y, &r.map_yx, Some((parse_size(DEFAULT_SIZE)?, &view)))?;
     outln!("  colour transfer: X.ply, Y.ply (per-vertex colours) and render.png");
     Ok(())
 }
 
 /// One line saying what a match configuration does.
-fn describe(args: &MatchArgs, opts: &funcorr::matching::MatchOptions) -> String {
+fn describe(data: &str, opts: &funcorr::matching::MatchOptions) -> String {
     use funcorr::matching::{Method, Refine as R};
     let method = match opts.method {
         Method::Axiomatic => {
             let a = &opts.axiomatic;
             return format!(
                 "data {} + {} signed, axiomatic functional maps (k = {:?}, orientation {:?}), best of the candidates after ZoomOut to {}, ZoomOut to {}{}",
-                args.data,
+                data,
                 a.signed,
                 a.candidates,
                 a.fit.orientation,
@@ -1770,7 +1786,7 @@ fn describe(args: &MatchArgs, opts: &funcorr::matching::MatchOptions) -> String 
         R::Icp => format!("ICP ({} iterations at most)", opts.icp.max_iterations),
         R::Zoomout => format!("ZoomOut to {} in steps of {}", opts.zoomout_to, opts.zoomout_step),
     };
-    format!("data {}, {method}, {refine}", args.data)
+    format!("data {}, {method}, {refine}", data)
 }
 
 /// The two bundled FAUST shapes (remeshed, ~5k vertices; Bogo et al. 2014, remeshed for
@@ -1790,8 +1806,7 @@ fn demo(target: &Path, k: usize) -> Result<()> {
 fn demo_into(staged: &funcorr::io::staged::StagedDir, k: usize) -> Result<()> {
     let out = staged.path();
     // Enough eigenpairs for the default match pipeline (as many as `funcorr match` computes).
-    let args = default_match_args()?;
-    let k = k.max(match_options(&args)?.basis_size()).max(args.pipe.kprime.unwrap_or(200));
+    let k = k.max(funcorr::matching::MatchOptions::default().basis_size()).max(funcorr::matching::DEFAULT_BASIS_SIZE);
     outln!("funcorr demo: two FAUST humans (same subject, different poses), k = {k} eigenpairs\n");
     let mut shapes: Vec<(TriMesh, Basis)> = Vec::new();
     for (name, bytes) in [DEMO_X, DEMO_Y] {
@@ -1839,4 +1854,50 @@ fn demo_into(staged: &funcorr::io::staged::StagedDir, k: usize) -> Result<()> {
     }
     demo_segments(out, (mesh_x, x), (mesh_y, y))?;
     demo_match(out, (mesh_x, x), (mesh_y, y))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use funcorr::matching::{MatchOptions, Method};
+
+    fn parsed(args: &[&str]) -> MatchArgs {
+        let mut line = vec!["funcorr", "match", "X", "Y", "-o", "out"];
+        line.extend_from_slice(args);
+        match Cli::try_parse_from(line).unwrap().command {
+            Command::Match(a) => a,
+            _ => unreachable!("a match command line"),
+        }
+    }
+
+    fn json(o: &MatchOptions) -> String {
+        serde_json::to_string(o).unwrap()
+    }
+
+    /// The library's defaults are what `funcorr match` runs, method by method and for scarce
+    /// and rich data; an option given on the command line changes them.
+    #[test]
+    fn the_cli_runs_the_library_defaults() {
+        assert_eq!(json(&match_options(&parsed(&[])).unwrap()), json(&MatchOptions::default()));
+        for (flag, method) in [
+            ("axiomatic", Method::Axiomatic),
+            ("fmap", Method::Fmap),
+            ("pokrass", Method::Pokrass),
+            ("coupled", Method::Coupled),
+            ("completion", Method::Completion),
+        ] {
+            for (data, rich) in [("wks", true), ("rich", true), ("persistence", false), ("landmarks:l.txt", false)] {
+                let a = parsed(&["--method", flag, "--data", data]);
+                assert_eq!(
+                    json(&match_options(&a).unwrap()),
+                    json(&MatchOptions::for_method(method, rich)),
+                    "{flag} {data}"
+                );
+            }
+        }
+        let a = parsed(&["--polish", "0", "-k", "30"]);
+        let o = match_options(&a).unwrap();
+        assert_eq!((o.axiomatic.polish, o.axiomatic.candidates.clone()), (0, vec![30]));
+        assert_ne!(json(&o), json(&MatchOptions::default()));
+    }
 }

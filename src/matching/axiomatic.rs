@@ -407,6 +407,7 @@ mod tests {
         completion.params.k_comm = 20;
         let opts = |orientation| MatchOptions {
             method: Method::Completion,
+            commutativity: 1e-3,
             completion: completion.clone(),
             init_k: 20,
             extraction: Extraction::Fmap,

@@ -93,26 +93,62 @@ pub struct MatchOptions {
     pub axiomatic: axiomatic::AxiomaticPipeline,
 }
 
-impl Default for MatchOptions {
-    /// Eq. (5) with commutativity μ_c = 1e-3, k = 50, ZoomOut to 150 in steps of 1; the
-    /// completion options are the paper's scarce-data settings with [`completion::Scaling::Unit`].
-    fn default() -> Self {
+/// Eigenpairs per shape that `funcorr match` computes for the methods other than completion
+/// when the options need fewer (`--kprime` default).
+pub const DEFAULT_BASIS_SIZE: usize = 200;
+
+/// Weight of the completion method's Laplacian-commutativity (isometry prior) term by default
+/// (EXPERIMENTS.md: it won on the faust_r dev pairs; 0 is the paper's pure form (11)).
+pub const DEFAULT_COMPLETION_COMMUTATIVITY: f64 = 1e-2;
+
+/// Size of the leading block of C that the completion's commutativity term acts on by default.
+pub const DEFAULT_COMPLETION_COMMUTATIVITY_K: usize = 50;
+
+/// The completion options of `funcorr match --method completion` for scarce or rich data, a
+/// scaling and a form: the paper's k', k and the form's default weights
+/// ([`CompletionOptions::paper`], [`CompletionOptions::with_form`]) plus the isometry prior
+/// ([`DEFAULT_COMPLETION_COMMUTATIVITY`] on the leading [`DEFAULT_COMPLETION_COMMUTATIVITY_K`]
+/// block).
+pub fn completion_defaults(rich: bool, scaling: completion::Scaling, form: completion::Form) -> CompletionOptions {
+    let mut c = CompletionOptions::paper(rich, scaling).with_form(form);
+    c.params.mu_comm = DEFAULT_COMPLETION_COMMUTATIVITY;
+    c.params.k_comm = DEFAULT_COMPLETION_COMMUTATIVITY_K;
+    c
+}
+
+impl MatchOptions {
+    /// The options `funcorr match --method <method>` runs when no other option is given, for
+    /// scarce data (a few functions: segments, persistence, MSER, landmarks) or rich data (many
+    /// functions: WKS/HKS signatures, `rich`, a matrix; [`crate::descriptors::spec::PairDataSpec::is_rich`]). Per method and data, as measured best (EXPERIMENTS.md): eq. (5) with
+    /// commutativity μ_c = 1e-3 for rich data and 0 for scarce data, k = 50; completion
+    /// [`completion_defaults`] (unit scaling, subspace form); refinement ZoomOut (to 150 in steps
+    /// of 1) for rich data and ICP (10 iterations at most) for scarce data; the axiomatic
+    /// method's own pipeline ([`axiomatic::AxiomaticPipeline::default`]).
+    pub fn for_method(method: Method, rich: bool) -> MatchOptions {
         MatchOptions {
-            method: Method::Fmap,
+            method,
             k: 50,
-            commutativity: 1e-3,
+            commutativity: if rich { 1e-3 } else { 0.0 },
             pokrass: PokrassOptions::default(),
             coupled: CoupledOptions::default(),
-            completion: CompletionOptions::paper(false, completion::Scaling::Unit),
+            completion: completion_defaults(rich, completion::Scaling::Unit, completion::Form::Subspace),
             init_k: 50,
             extraction: Extraction::Nn,
-            refine: Refine::Zoomout,
+            refine: if rich { Refine::Zoomout } else { Refine::Icp },
             refine_k: 50,
-            icp: IcpOptions::default(),
+            icp: IcpOptions { max_iterations: 10 },
             zoomout_to: 150,
             zoomout_step: 1,
             axiomatic: axiomatic::AxiomaticPipeline::default(),
         }
+    }
+}
+
+impl Default for MatchOptions {
+    /// What `funcorr match X Y` runs: [`MatchOptions::for_method`] with [`Method::Axiomatic`]
+    /// and the default data `--data wks` (100 WKS: rich).
+    fn default() -> Self {
+        MatchOptions::for_method(Method::Axiomatic, true)
     }
 }
 
