@@ -662,6 +662,20 @@ enum SegFunction {
     Agd,
 }
 
+impl SegmentationArgs {
+    fn options(&self) -> funcorr::descriptors::persistence::SegmentationOptions {
+        use funcorr::descriptors::persistence::{SegmentFunction, SegmentationOptions};
+        SegmentationOptions {
+            function: match self.function {
+                SegFunction::Hks => SegmentFunction::Hks,
+                SegFunction::Agd => SegmentFunction::Agd,
+            },
+            threshold: self.threshold,
+            hks_time: self.hks_time,
+        }
+    }
+}
+
 /// Options of the persistence-based segmentation.
 #[derive(clap::Args)]
 struct SegmentationArgs {
@@ -678,17 +692,7 @@ struct SegmentationArgs {
 
 /// Persistence segmentation of a shape (labels 1..=s, one per vertex).
 fn persistence_labels(shape: &Shape, lap: &Laplacian, basis: &Basis, args: &SegmentationArgs) -> Result<Vec<u32>> {
-    use funcorr::descriptors::persistence as pers;
-    let edges = match shape {
-        Shape::Mesh(m) => m.edges(),
-        Shape::Points(_) => pers::graph_edges(lap),
-    };
-    let f = match (args.function, shape) {
-        (SegFunction::Hks, _) => pers::hks_function(basis, args.hks_time)?,
-        (SegFunction::Agd, Shape::Mesh(m)) => pers::average_geodesic_distance(m, pers::DEFAULT_AGD_SOURCES)?,
-        (SegFunction::Agd, Shape::Points(p)) => pers::average_graph_distance(p, &edges, pers::DEFAULT_AGD_SOURCES)?,
-    };
-    Ok(pers::persistence_segmentation(shape.n_vertices(), &edges, &f, args.threshold)?.labels)
+    funcorr::descriptors::persistence::segment_labels(shape, lap, basis, &args.options())
 }
 
 /// The Laplacian and basis of a shape: read from --basis, or computed (and cached).
@@ -1104,71 +1108,11 @@ fn regions(args: &RegionArgs) -> Result<()> {
 /// Data functions F on X and G on Y from a `--data` spec (see `funcorr match --help`).
 fn pair_data(
     spec: &str,
-    (x, lx, bx): (&Shape, &Laplacian, &Basis),
-    (y, ly, by): (&Shape, &Laplacian, &Basis),
+    x: (&Shape, &Laplacian, &Basis),
+    y: (&Shape, &Laplacian, &Basis),
     seg: &SegmentationArgs,
 ) -> Result<(funcorr::descriptors::Descriptors, funcorr::descriptors::Descriptors)> {
-    use funcorr::descriptors::spec::PairDataSpec as P;
-    use funcorr::descriptors::{self as desc, persistence as pers, signatures as sig};
-    let bad = |msg: String| Error::invalid("--data", format!("'{spec}': {msg}"));
-    let sigs = |b: &Basis, wks: bool, hks: bool, n: usize| -> Result<desc::Descriptors> {
-        let w = if wks { Some(sig::wks(b, n, true)?) } else { None };
-        let h = if hks { Some(sig::hks(b, &sig::hks_times(b, n)?, true)?) } else { None };
-        match (w, h) {
-            (Some(w), Some(h)) => w.concat(&h),
-            (Some(w), None) => Ok(w),
-            (None, Some(h)) => Ok(h),
-            (None, None) => unreachable!("at least one signature"),
-        }
-    };
-    let segments = |a: &Path, b: &Path| {
-        let la = funcorr::io::indices::read_labels_file(a, x.n_vertices())?;
-        let lb = funcorr::io::indices::read_labels_file(b, y.n_vertices())?;
-        // Labels agree between the files: keep the labels present on both, in order.
-        desc::matched_segments(&la, &lb).map_err(|e| bad(e.to_string()))
-    };
-    let persistence = || -> Result<_> {
-        let a = persistence_labels(x, lx, bx, seg)?;
-        let b = persistence_labels(y, ly, by, seg)?;
-        let (f, g, _) = pers::matched_segment_indicators(&a, bx, &b, by)?;
-        Ok((f, g))
-    };
-    match spec.parse::<P>()? {
-        P::WksRecipe => {
-            let r = sig::WksRecipe::default();
-            Ok((sig::wks_recipe(bx, &r)?, sig::wks_recipe(by, &r)?))
-        }
-        P::Signatures { wks, hks, count } => Ok((sigs(bx, wks, hks, count)?, sigs(by, wks, hks, count)?)),
-        P::Segments(a, b) => segments(&a, &b),
-        P::Persistence => persistence(),
-        P::Rich(files) => {
-            // Segments: given label files (matched by label) or persistence segments (matched
-            // by signature); then 100 WKS + 100 HKM localized on them.
-            let (fs, gs) = match files {
-                None => persistence()?,
-                Some((a, b)) => segments(&a, &b)?,
-            };
-            desc::rich(bx, by, &fs, &gs, 100, 100)
-        }
-        P::Mser => match (x, y) {
-            (Shape::Mesh(mx), Shape::Mesh(my)) => {
-                let (f, g, _) =
-                    desc::mser::matched_mser_indicators((mx, bx), (my, by), &desc::mser::MserOptions::default())?;
-                Ok((f, g))
-            }
-            _ => Err(bad("mser needs two triangle meshes".into())),
-        },
-        P::Landmarks(file) => {
-            let pairs = funcorr::io::indices::read_index_pairs_file(&file, false, x.n_vertices(), y.n_vertices())?;
-            let (a, b): (Vec<usize>, Vec<usize>) = pairs.into_iter().unzip();
-            Ok((desc::landmarks(x.n_vertices(), &a)?, desc::landmarks(y.n_vertices(), &b)?))
-        }
-        P::Matrix(a, b) => {
-            let f = desc::Descriptors::from_matrix(&funcorr::io::read_matrix(&a)?, x.n_vertices())?;
-            let g = desc::Descriptors::from_matrix(&funcorr::io::read_matrix(&b)?, y.n_vertices())?;
-            Ok((f, g))
-        }
-    }
+    spec.parse::<funcorr::descriptors::spec::PairDataSpec>()?.functions(x, y, &seg.options())
 }
 
 /// Geometry of a shape for writing (None for feature matrices of dimension ≠ 3).

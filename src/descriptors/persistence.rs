@@ -81,6 +81,54 @@ pub const MATCH_WKS: usize = 16;
 /// Number of farthest-point-sampled sources of [`average_geodesic_distance`] by default.
 pub const DEFAULT_AGD_SOURCES: usize = 32;
 
+/// The function whose maxima seed the persistence segments.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum SegmentFunction {
+    /// Scale-normalized heat kernel signature at t = `hks_time` / λ₁ (maxima at protrusions).
+    Hks,
+    /// Average geodesic distance from [`DEFAULT_AGD_SOURCES`] farthest-point sources
+    /// (heat-method geodesics on meshes, kNN-graph distances on point clouds).
+    Agd,
+}
+
+/// Options of [`segment_labels`].
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SegmentationOptions {
+    /// The function whose maxima seed the segments.
+    pub function: SegmentFunction,
+    /// Persistence threshold τ as a fraction of the function's range (0–1).
+    pub threshold: f64,
+    /// HKS time, in units of 1/λ₁.
+    pub hks_time: f64,
+}
+
+impl Default for SegmentationOptions {
+    fn default() -> Self {
+        SegmentationOptions { function: SegmentFunction::Hks, threshold: DEFAULT_THRESHOLD, hks_time: DEFAULT_HKS_TIME }
+    }
+}
+
+/// Persistence segmentation of a shape (mesh or point set with its Laplacian `lap` and basis):
+/// labels 1..=s, one per vertex (length n).
+pub fn segment_labels(
+    shape: &crate::shape::Shape,
+    lap: &Laplacian,
+    basis: &Basis,
+    opts: &SegmentationOptions,
+) -> Result<Vec<u32>> {
+    use crate::shape::Shape;
+    let edges = match shape {
+        Shape::Mesh(m) => m.edges(),
+        Shape::Points(_) => graph_edges(lap),
+    };
+    let f = match (opts.function, shape) {
+        (SegmentFunction::Hks, _) => hks_function(basis, opts.hks_time)?,
+        (SegmentFunction::Agd, Shape::Mesh(m)) => average_geodesic_distance(m, DEFAULT_AGD_SOURCES)?,
+        (SegmentFunction::Agd, Shape::Points(p)) => average_graph_distance(p, &edges, DEFAULT_AGD_SOURCES)?,
+    };
+    Ok(persistence_segmentation(shape.n_vertices(), &edges, &f, opts.threshold)?.labels)
+}
+
 /// A segmentation of a shape with n vertices into s segments.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Segmentation {

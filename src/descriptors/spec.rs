@@ -2,10 +2,15 @@
 //! Y to use, parsed from a short string before any work is done (so that a typo fails at once,
 //! and so that the parser can be fuzzed on its own).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
+use super::persistence::SegmentationOptions;
+use super::Descriptors;
 use crate::error::{Error, Result};
+use crate::laplacian::Laplacian;
+use crate::shape::Shape;
+use crate::spectral::Basis;
 
 /// Most signature functions a spec may ask for (`wks:N`, `hks:N`): the same bound as
 /// [`super::signatures::wks`].
@@ -112,9 +117,147 @@ impl FromStr for PairDataSpec {
     }
 }
 
+impl std::fmt::Display for PairDataSpec {
+    /// The canonical spec string (what [`FromStr`] reads back).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            PairDataSpec::WksRecipe => write!(f, "wks"),
+            PairDataSpec::Signatures { wks, hks, count } => {
+                let kind = match (wks, hks) {
+                    (true, true) => "wks+hks",
+                    (true, false) => "wks",
+                    _ => "hks",
+                };
+                write!(f, "{kind}:{count}")
+            }
+            PairDataSpec::Segments(a, b) => write!(f, "segments:{},{}", a.display(), b.display()),
+            PairDataSpec::Persistence => write!(f, "persistence"),
+            PairDataSpec::Rich(None) => write!(f, "rich"),
+            PairDataSpec::Rich(Some((a, b))) => write!(f, "rich:{},{}", a.display(), b.display()),
+            PairDataSpec::Mser => write!(f, "mser"),
+            PairDataSpec::Landmarks(p) => write!(f, "landmarks:{}", p.display()),
+            PairDataSpec::Matrix(a, b) => write!(f, "matrix:{},{}", a.display(), b.display()),
+        }
+    }
+}
+
+/// One side of a pair for [`PairDataSpec::functions`]: the shape (n vertices), its Laplacian
+/// and its basis (n × k).
+pub type Side<'a> = (&'a Shape, &'a Laplacian, &'a Basis);
+
+impl PairDataSpec {
+    /// The corresponding functions F (n × q) on X and G (m × q) on Y this spec asks for, the
+    /// same q columns in the same order on both shapes. `seg` configures the persistence
+    /// segments of `persistence` and `rich`. Errors name the spec (parameter `--data`) or the
+    /// file at fault.
+    pub fn functions(
+        &self,
+        (x, lx, bx): Side,
+        (y, ly, by): Side,
+        seg: &SegmentationOptions,
+    ) -> Result<(Descriptors, Descriptors)> {
+        use super::{persistence as pers, signatures as sig};
+        let bad = |msg: String| Error::invalid("--data", format!("'{self}': {msg}"));
+        let sigs = |b: &Basis, wks: bool, hks: bool, n: usize| -> Result<Descriptors> {
+            let w = if wks { Some(sig::wks(b, n, true)?) } else { None };
+            let h = if hks { Some(sig::hks(b, &sig::hks_times(b, n)?, true)?) } else { None };
+            match (w, h) {
+                (Some(w), Some(h)) => w.concat(&h),
+                (Some(w), None) => Ok(w),
+                (None, Some(h)) => Ok(h),
+                (None, None) => Err(bad("no signature asked for".into())),
+            }
+        };
+        let segments = |a: &Path, b: &Path| {
+            let la = crate::io::indices::read_labels_file(a, x.n_vertices())?;
+            let lb = crate::io::indices::read_labels_file(b, y.n_vertices())?;
+            // Labels agree between the files: keep the labels present on both, in order.
+            super::matched_segments(&la, &lb).map_err(|e| bad(e.to_string()))
+        };
+        let persistence = || -> Result<_> {
+            let a = pers::segment_labels(x, lx, bx, seg)?;
+            let b = pers::segment_labels(y, ly, by, seg)?;
+            let (f, g, _) = pers::matched_segment_indicators(&a, bx, &b, by)?;
+            Ok((f, g))
+        };
+        match self {
+            PairDataSpec::WksRecipe => {
+                let r = sig::WksRecipe::default();
+                Ok((sig::wks_recipe(bx, &r)?, sig::wks_recipe(by, &r)?))
+            }
+            &PairDataSpec::Signatures { wks, hks, count } => {
+                Ok((sigs(bx, wks, hks, count)?, sigs(by, wks, hks, count)?))
+            }
+            PairDataSpec::Segments(a, b) => segments(a, b),
+            PairDataSpec::Persistence => persistence(),
+            PairDataSpec::Rich(files) => {
+                // Segments: given label files (matched by label) or persistence segments
+                // (matched by signature); then 100 WKS + 100 HKM localized on them.
+                let (fs, gs) = match files {
+                    None => persistence()?,
+                    Some((a, b)) => segments(a, b)?,
+                };
+                super::rich(bx, by, &fs, &gs, 100, 100)
+            }
+            PairDataSpec::Mser => match (x, y) {
+                (Shape::Mesh(mx), Shape::Mesh(my)) => {
+                    let (f, g, _) =
+                        super::mser::matched_mser_indicators((mx, bx), (my, by), &super::mser::MserOptions::default())?;
+                    Ok((f, g))
+                }
+                _ => Err(bad("mser needs two triangle meshes".into())),
+            },
+            PairDataSpec::Landmarks(file) => {
+                let pairs = crate::io::indices::read_index_pairs_file(file, false, x.n_vertices(), y.n_vertices())?;
+                let (a, b): (Vec<usize>, Vec<usize>) = pairs.into_iter().unzip();
+                Ok((super::landmarks(x.n_vertices(), &a)?, super::landmarks(y.n_vertices(), &b)?))
+            }
+            PairDataSpec::Matrix(a, b) => {
+                let f = Descriptors::from_matrix(&crate::io::read_matrix(a)?, x.n_vertices())?;
+                let g = Descriptors::from_matrix(&crate::io::read_matrix(b)?, y.n_vertices())?;
+                Ok((f, g))
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn specs_print_as_they_parse_and_give_functions_on_both_shapes() {
+        for text in [
+            "wks",
+            "wks:7",
+            "hks:100",
+            "wks+hks:3",
+            "segments:a,b",
+            "persistence",
+            "rich",
+            "rich:a,b",
+            "mser",
+            "landmarks:l.txt",
+            "matrix:f.npy,g.npy",
+        ] {
+            let spec: PairDataSpec = text.parse().unwrap();
+            assert_eq!(spec.to_string(), text);
+            assert_eq!(spec.to_string().parse::<PairDataSpec>().unwrap(), spec);
+        }
+        let m = crate::primitives::bumpy_sphere(2);
+        let lap = crate::laplacian::cotangent(&m).unwrap();
+        let basis = crate::spectral::eigen_basis(&lap, &crate::spectral::SpectralOptions::new(20), None).unwrap().0;
+        let shape = Shape::Mesh(m);
+        let side = (&shape, &lap, &basis);
+        let seg = SegmentationOptions::default();
+        let (f, g) = "wks+hks:5".parse::<PairDataSpec>().unwrap().functions(side, side, &seg).unwrap();
+        assert_eq!((f.q(), g.q(), f.n()), (10, 10, shape.n_vertices()));
+        let (f, g) = "persistence".parse::<PairDataSpec>().unwrap().functions(side, side, &seg).unwrap();
+        assert!(f.q() >= 1 && f.q() == g.q());
+        let e =
+            "landmarks:/nonexistent/l.txt".parse::<PairDataSpec>().unwrap().functions(side, side, &seg).unwrap_err();
+        assert!(e.to_string().contains("/nonexistent/l.txt"), "{e}");
+    }
 
     #[test]
     fn every_form_parses_and_mistakes_name_the_option() {
