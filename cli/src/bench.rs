@@ -1,6 +1,10 @@
 //! `funcorr bench` (a data set through the Princeton protocol) and `funcorr reproduce` (the
 //! paper's Figures 5, 6 and 7): argument parsing, progress and printing over
 //! [`funcorr::benchmark`] and [`funcorr::experiments`].
+//!
+//! One file for both commands (≈ 610 lines): `reproduce benchmark` is `bench` run twice with the
+//! paper's settings, and both share the pair selection, thread pool, progress bar and staged
+//! output of this file.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -1,0 +1,309 @@
+//! `funcorr match`: dense correspondence between two shapes, and its outputs.
+
+#[allow(unused_imports)]
+use super::*;
+
+#[derive(clap::Args)]
+pub(crate) struct MatchArgs {
+    /// Source shape X.
+    pub(crate) x: PathBuf,
+    /// Target shape Y.
+    pub(crate) y: PathBuf,
+    /// Corresponding data: `wks` (the default: 100 WKS energies from the first 128 eigenpairs,
+    /// every 2nd kept), `wks:N` (N WKS from the whole basis), `hks:N`, `wks+hks:N` (`hks` and
+    /// `wks+hks` without a count mean N = 100), `segments:X.seg,Y.seg` (labels that
+    /// agree between the files), `persistence`, `mser`, `landmarks:pairs.txt` (0-based `i j`
+    /// per line), `rich` (100 WKS + 100 heat kernel maps localized on the persistence segments,
+    /// the paper's rich data) or `rich:X.seg,Y.seg` (on given segments), or `matrix:F.npy,G.npy`.
+    #[arg(long, default_value = DEFAULT_DATA)]
+    pub(crate) data: String,
+    /// Functional-map method.
+    #[arg(long, value_enum, default_value = "axiomatic")]
+    pub(crate) method: MethodChoice,
+    #[command(flatten)]
+    pub(crate) pipe: PipelineArgs,
+    /// Write map.txt with 1-based vertex ids (MATLAB).
+    #[arg(long)]
+    pub(crate) one_based: bool,
+    /// Also write the soft map T δ_i (a function on Y) of these vertices of X (comma-separated,
+    /// 0-based) as soft_<i>.npy and soft_<i>.ply.
+    #[arg(long, value_delimiter = ',')]
+    pub(crate) soft: Vec<usize>,
+    /// Camera of render.png: azimuth,elevation in degrees (0,0: looking along −Z, Y up).
+    #[arg(long, default_value = DEFAULT_VIEW)]
+    pub(crate) view: String,
+    /// Size of render.png, WIDTHxHEIGHT pixels (each side ≤ 16384, at most 67,108,864 pixels in
+    /// all, e.g. 8192x8192).
+    #[arg(long, default_value = DEFAULT_SIZE)]
+    pub(crate) size: String,
+    /// Do not write render.png.
+    #[arg(long)]
+    pub(crate) no_render: bool,
+    /// Output directory.
+    #[arg(short, long)]
+    pub(crate) output: PathBuf,
+    #[command(flatten)]
+    pub(crate) seg: SegmentationArgs,
+    #[command(flatten)]
+    pub(crate) lap: LaplacianArgs,
+    #[command(flatten)]
+    pub(crate) cache: CacheArgs,
+    /// No timings on stderr.
+    #[arg(short, long)]
+    pub(crate) quiet: bool,
+}
+
+/// Geometry of a shape for writing (None for feature matrices of dimension ≠ 3).
+pub(crate) fn mesh_data(shape: &Shape) -> Option<funcorr::io::MeshData> {
+    match shape {
+        Shape::Mesh(m) => {
+            Some(funcorr::io::MeshData { vertices: m.vertices().to_vec(), faces: m.faces().to_vec(), colors: None })
+        }
+        Shape::Points(p) if p.dim() == 3 => Some(funcorr::io::MeshData {
+            vertices: p.coords().chunks(3).map(|c| [c[0], c[1], c[2]]).collect(),
+            faces: vec![],
+            colors: None,
+        }),
+        Shape::Points(_) => None,
+    }
+}
+
+/// The library options of `funcorr match` (defaults per method and data, see `--help`).
+pub(crate) fn match_options(args: &MatchArgs) -> Result<funcorr::matching::MatchOptions> {
+    pipeline_options(&args.pipe, args.method, is_rich(&args.data))
+}
+
+/// Writes a k × k (or r × c) matrix as .npy.
+pub(crate) fn write_mat_npy(path: &Path, c: &faer::Mat<f64>) -> Result<()> {
+    let (r, k) = (c.nrows(), c.ncols());
+    let dense = funcorr::io::DenseMatrix { rows: r, cols: k, data: (0..r * k).map(|t| c[(t / k, t % k)]).collect() };
+    funcorr::io::npy::write_npy_matrix(path, &dense)
+}
+
+/// Parses `WIDTHxHEIGHT` of a side-by-side render and checks it against the renderer's limits
+/// (each side ≤ 16384, at most 2²⁶ pixels in all), so that a bad size fails before any work.
+pub(crate) fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let bad = || Error::invalid("--size", format!("'{s}': expected WIDTHxHEIGHT, e.g. 1600x900"));
+    let (w, h) = s.split_once('x').ok_or_else(bad)?;
+    let (w, h) = (w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?);
+    funcorr::viz::render::check_size(w, h, 2).map_err(|e| match e {
+        Error::Invalid { what, msg } => Error::invalid("--size", format!("'{s}': {what}: {msg}")),
+        other => other,
+    })?;
+    Ok((w, h))
+}
+
+/// The colour-transfer outputs of a map: X coloured by position, Y by pulling the colours back
+/// through `map_yx`; X.ply, Y.ply and (unless `size` is None) render.png.
+pub(crate) fn write_colour_transfer(
+    out: &Path,
+    x: &Shape,
+    y: &Shape,
+    map_yx: &[usize],
+    render: Option<((u32, u32), &funcorr::viz::View)>,
+) -> Result<()> {
+    let (Some(mut dx), Some(mut dy)) = (mesh_data(x), mesh_data(y)) else {
+        return Ok(());
+    };
+    let colors_x = funcorr::viz::position_colors(&dx.vertices);
+    let colors_y = funcorr::viz::pull_back_colors(&colors_x, map_yx)
+        .ok_or_else(|| Error::invalid("map", "the map Y → X points outside X"))?;
+    if let Some(((w, h), view)) = render {
+        use funcorr::viz::{render_pair, write_png, ColoredShape};
+        let sx = ColoredShape { vertices: &dx.vertices, faces: &dx.faces, colors: &colors_x };
+        let sy = ColoredShape { vertices: &dy.vertices, faces: &dy.faces, colors: &colors_y };
+        write_png(&out.join("render.png"), &render_pair(&sx, &sy, w, h, view)?)?;
+    }
+    dx.colors = Some(colors_x);
+    dy.colors = Some(colors_y);
+    funcorr::io::write_mesh(&out.join("X.ply"), &dx)?;
+    funcorr::io::write_mesh(&out.join("Y.ply"), &dy)
+}
+
+pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
+    let mut st = Stages { quiet: args.quiet, parts: vec![] };
+    // A malformed --data fails before any work.
+    args.data.parse::<funcorr::descriptors::spec::PairDataSpec>()?;
+    let opts = match_options(args)?;
+    let view = funcorr::viz::View::parse(&args.view)?;
+    let size = parse_size(&args.size)?;
+    let (basis_k, demand) = basis_demand(&args.pipe, &opts)?;
+    let x = st.run("read", || Shape::load(&args.x))?;
+    let y = st.run("read", || Shape::load(&args.y))?;
+    for (path, shape) in [(&args.x, &x), (&args.y, &y)] {
+        if basis_k >= shape.n_vertices() {
+            return Err(Error::invalid(
+                demand.split(' ').next().filter(|w| w.starts_with('-')).unwrap_or("k"),
+                format!(
+                    "{demand} asks for {basis_k} eigenpairs per shape, but {} has only n = {} vertices (at most n − 1); \
+                     ask for fewer",
+                    path.display(),
+                    shape.n_vertices()
+                ),
+            ));
+        }
+    }
+    if let Some(&bad) = args.soft.iter().find(|&&i| i >= x.n_vertices()) {
+        return Err(Error::invalid("--soft", format!("vertex {bad} of X does not exist (n = {})", x.n_vertices())));
+    }
+    // The two shapes' Laplacians and bases are independent: prepared side by side.
+    let (mut stx, mut sty) = (Stages { quiet: args.quiet, parts: vec![] }, Stages { quiet: args.quiet, parts: vec![] });
+    let (px, py) = rayon::join(
+        || prepared_shape(x, &args.x, &args.lap, &args.cache, basis_k, &mut stx),
+        || prepared_shape(y, &args.y, &args.lap, &args.cache, basis_k, &mut sty),
+    );
+    let (px, py) = (px?, py?);
+    st.parts.extend(stx.parts.into_iter().map(|s| format!("X {s}")));
+    st.parts.extend(sty.parts.into_iter().map(|s| format!("Y {s}")));
+    let (f, g) = st.run("data", || {
+        pair_data(&args.data, (&px.shape, &px.laplacian, &px.basis), (&py.shape, &py.laplacian, &py.basis), &args.seg)
+    })?;
+    let r = funcorr::matching::run_prepared(&px, &py, &f, &g, &opts)?;
+    let (x, y, bx, by) = (&px.shape, &py.shape, &px.basis, &py.basis);
+    for (name, secs) in &r.stages {
+        st.note(format!("{name} {secs:.3} s"));
+    }
+    let stages = st.parts.clone();
+    st.run("write", || {
+        // Everything goes into a staging directory, published whole at the end (io::staged).
+        funcorr::io::staged::StagedDir::create(&args.output)?.write_with(|out| {
+        write_map_files(out, &r.map_xy, args.one_based)?;
+        write_mat_npy(&out.join("C.npy"), &r.c)?;
+        if r.c_method.nrows() != r.c.nrows() || opts.refine != funcorr::matching::Refine::None {
+            write_mat_npy(&out.join("C_method.npy"), &r.c_method)?;
+        }
+        if let Some((a, b)) = &r.coefficients {
+            write_mat_npy(&out.join("A.npy"), a)?;
+            write_mat_npy(&out.join("B.npy"), b)?;
+        }
+        for &i in &args.soft {
+            let t = funcorr::pointwise::soft_map_column(
+                bx.eigenvectors.as_ref(),
+                by.eigenvectors.as_ref(),
+                r.c_method.as_ref(),
+                i,
+            )?;
+            funcorr::io::npy::write_npy_matrix(
+                &out.join(format!("soft_{i}.npy")),
+                &funcorr::io::DenseMatrix { rows: t.len(), cols: 1, data: t.clone() },
+            )?;
+            if let Some(mut dy) = mesh_data(y) {
+                dy.colors = Some(funcorr::viz::diverging_colors(&t));
+                funcorr::io::write_mesh(&out.join(format!("soft_{i}.ply")), &dy)?;
+            }
+        }
+        let report = serde_json::json!({
+            "x": args.x.display().to_string(), "y": args.y.display().to_string(),
+            "n": x.n_vertices(), "m": y.n_vertices(),
+            "data": args.data, "q": f.q(),
+            "options": opts,
+            "basis_size": basis_k,
+            "final_k": r.c.nrows(),
+            "solver": r.solver,
+            "candidates": r.candidates.as_ref().map(|(c, i)| serde_json::json!({"candidates": c, "chosen": i})),
+            "stages": r.stages.iter().map(|(n, s)| serde_json::json!({"stage": n, "seconds": s})).collect::<Vec<_>>(),
+            "log": stages,
+        });
+        let p = out.join("report.json");
+        funcorr::io::write_atomic(&p, serde_json::to_string_pretty(&report).expect("plain JSON"))?;
+        write_colour_transfer(out, x, y, &r.map_yx, (!args.no_render).then_some((size, &view)))
+        })
+    })?;
+    st.note(format!("q {} | C {}×{}", f.q(), r.c.nrows(), r.c.ncols()));
+    st.finish();
+    Ok(())
+}
+
+/// map.txt (one vertex of Y per line, 0- or 1-based) and map.npy (0-based, u64).
+pub(crate) fn write_map_files(out: &Path, map_xy: &[usize], one_based: bool) -> Result<()> {
+    let base = usize::from(one_based);
+    let text: String = map_xy.iter().map(|j| format!("{}\n", j + base)).collect();
+    let p = out.join("map.txt");
+    funcorr::io::write_atomic(&p, text)?;
+    funcorr::io::npy::write_npy_vec_u64(&out.join("map.npy"), &map_xy.iter().map(|&j| j as u64).collect::<Vec<_>>())
+}
+
+/// One line saying what a match configuration does.
+pub(crate) fn describe(data: &str, opts: &funcorr::matching::MatchOptions) -> String {
+    use funcorr::matching::{Method, Refine as R};
+    let method = match opts.method {
+        Method::Axiomatic => {
+            let a = &opts.axiomatic;
+            return format!(
+                "data {} + {} signed, axiomatic functional maps (k = {:?}, orientation {:?}), best of the candidates after ZoomOut to {}, ZoomOut to {}{}",
+                data,
+                a.signed,
+                a.candidates,
+                a.fit.orientation,
+                a.probe.k_final,
+                a.refine.k_final,
+                match a.polish {
+                    0 => String::new(),
+                    r => format!(", {r} round(s) of bijective polish"),
+                }
+            );
+        }
+        Method::Fmap if opts.commutativity > 0.0 => {
+            format!("eq. (5) with Laplacian commutativity μ_c = {}, k = {}", opts.commutativity, opts.k)
+        }
+        Method::Fmap => format!("eq. (5), k = {}", opts.k),
+        Method::Pokrass => format!("Pokrass et al. eq. (6), k = {}", opts.k),
+        Method::Coupled => format!("coupled bases eq. (7), k = {}", opts.k),
+        Method::Completion => format!(
+            "matrix completion {:?} k' = {}, k = {}",
+            opts.completion.form, opts.completion.k_prime, opts.completion.k
+        ),
+    };
+    let refine = match opts.refine {
+        R::None => "no refinement".to_string(),
+        R::Icp => format!("ICP ({} iterations at most)", opts.icp.max_iterations),
+        R::Zoomout => format!("ZoomOut to {} in steps of {}", opts.zoomout_to, opts.zoomout_step),
+    };
+    format!("data {}, {method}, {refine}", data)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use funcorr::matching::{MatchOptions, Method};
+
+    fn parsed(args: &[&str]) -> MatchArgs {
+        let mut line = vec!["funcorr", "match", "X", "Y", "-o", "out"];
+        line.extend_from_slice(args);
+        match Cli::try_parse_from(line).unwrap().command {
+            Command::Match(a) => a,
+            _ => unreachable!("a match command line"),
+        }
+    }
+
+    fn json(o: &MatchOptions) -> String {
+        serde_json::to_string(o).unwrap()
+    }
+
+    /// The library's defaults are what `funcorr match` runs, method by method and for scarce
+    /// and rich data; an option given on the command line changes them.
+    #[test]
+    fn the_cli_runs_the_library_defaults() {
+        assert_eq!(json(&match_options(&parsed(&[])).unwrap()), json(&MatchOptions::default()));
+        for (flag, method) in [
+            ("axiomatic", Method::Axiomatic),
+            ("fmap", Method::Fmap),
+            ("pokrass", Method::Pokrass),
+            ("coupled", Method::Coupled),
+            ("completion", Method::Completion),
+        ] {
+            for (data, rich) in [("wks", true), ("rich", true), ("persistence", false), ("landmarks:l.txt", false)] {
+                let a = parsed(&["--method", flag, "--data", data]);
+                assert_eq!(
+                    json(&match_options(&a).unwrap()),
+                    json(&MatchOptions::for_method(method, rich)),
+                    "{flag} {data}"
+                );
+            }
+        }
+        let a = parsed(&["--polish", "0", "-k", "30"]);
+        let o = match_options(&a).unwrap();
+        assert_eq!((o.axiomatic.polish, o.axiomatic.candidates.clone()), (0, vec![30]));
+        assert_ne!(json(&o), json(&MatchOptions::default()));
+    }
+}
