@@ -490,7 +490,7 @@ mod tests {
     /// on the mesh's own edges does.
     #[test]
     fn cloud_area_and_geodesics_match_the_surface() {
-        use crate::eval::Distances;
+        use crate::geodesic::Distances;
         let s = icosphere(4);
         let surf = cloud_surface(s.vertices(), DEFAULT_NEIGHBOURS).unwrap();
         assert!((surf.area() / s.total_area() - 1.0).abs() < 0.05, "{} vs {}", surf.area(), s.total_area());

@@ -18,7 +18,8 @@ use faer::{Accum, Mat, MatRef, Par};
 use crate::benchmark::farthest_points;
 use crate::descriptors::{signatures as sig, Descriptors};
 use crate::error::{Error, Result};
-use crate::eval::{self, Distances, GroundTruth};
+use crate::eval::{self, GroundTruth};
+use crate::geodesic::Distances;
 use crate::shape::TriMesh;
 use crate::spectral::Basis;
 

@@ -15,8 +15,8 @@
 //! cell), C_yx is the weighted least-squares solution of Φ_S C ≈ Ψ_π(S). With every vertex and
 //! w = A_X this is exactly Φᵀ A_X Π Ψ.
 
-use faer::linalg::matmul::matmul;
-use faer::{Accum, Mat, MatRef, Par, Side};
+use crate::linalg::mul;
+use faer::{Mat, MatRef, Side};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
@@ -100,12 +100,6 @@ pub fn farthest_point_samples(points: &[[f64; 3]], mass: &[f64], count: usize) -
         weights[owner[i]] += mass[i];
     }
     Ok(Samples { vertices: chosen, weights })
-}
-
-fn mul(a: MatRef<f64>, b: MatRef<f64>) -> Mat<f64> {
-    let mut out = Mat::<f64>::zeros(a.nrows(), b.ncols());
-    matmul(out.as_mut(), Accum::Replace, a, b, 1.0, Par::Seq);
-    out
 }
 
 /// The pull-back functional map C_yx (k_X × k_Y) of a point map given on the samples of X:

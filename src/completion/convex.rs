@@ -21,6 +21,7 @@
 //! iteration; [`solve`] refuses problems with m·n > [`MAX_ENTRIES`] (e.g. 2,000 × 2,000). It is
 //! meant for small shapes and graphs; use the low-norm (10) or subspace (11) form beyond.
 
+use crate::linalg::frob;
 use std::time::Instant;
 
 use faer::{Mat, MatRef};
@@ -78,10 +79,6 @@ pub struct AdmmReport {
     pub objective_history: Vec<f64>,
     /// Wall time.
     pub seconds_total: f64,
-}
-
-fn frob(x: MatRef<f64>, y: MatRef<f64>) -> f64 {
-    (0..x.ncols()).map(|j| (0..x.nrows()).map(|i| x[(i, j)] * y[(i, j)]).sum::<f64>()).sum()
 }
 
 /// diag(dy) X diag(dx).

@@ -20,6 +20,7 @@
 //! vertex-space form (8) runs on m × n matrices through [`super::full::FullProblem`], the
 //! subspace form on the k' × k' map C through [`super::Problem`].
 
+use crate::linalg::frob;
 use std::time::Instant;
 
 use faer::{Mat, MatRef};
@@ -173,10 +174,6 @@ struct Tangent {
     m: Mat<f64>,
     up: Mat<f64>,
     vp: Mat<f64>,
-}
-
-fn frob(x: MatRef<f64>, y: MatRef<f64>) -> f64 {
-    (0..x.ncols()).map(|j| (0..x.nrows()).map(|i| x[(i, j)] * y[(i, j)]).sum::<f64>()).sum()
 }
 
 impl Tangent {

@@ -23,6 +23,7 @@
 //! weights are the unit-area masses, and the low norm uses the masses and is divided by k. With
 //! [`Scaling::Paper`], ν = 1, no weights, and the data term is not rescaled.
 
+use crate::linalg::frob;
 use faer::linalg::matmul::matmul;
 use faer::sparse::linalg::matmul::sparse_dense_matmul;
 use faer::sparse::SparseColMat;
@@ -78,11 +79,6 @@ pub(crate) fn sparse_mul(w: &SparseColMat<usize, f64>, x: MatRef<f64>) -> Mat<f6
 /// diag(d) x.
 pub(crate) fn scale_rows(d: &[f64], x: MatRef<f64>) -> Mat<f64> {
     Mat::from_fn(x.nrows(), x.ncols(), |i, j| d[i] * x[(i, j)])
-}
-
-/// ⟨x, y⟩_F.
-fn frob(x: MatRef<f64>, y: MatRef<f64>) -> f64 {
-    (0..x.ncols()).map(|j| (0..x.nrows()).map(|i| x[(i, j)] * y[(i, j)]).sum::<f64>()).sum()
 }
 
 impl FullProblem {

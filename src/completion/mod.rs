@@ -65,6 +65,7 @@ pub use objective::{evaluate, value, CompletionParams, Evaluation, LowNorm, Term
 pub use optimize::{init_from_c, init_from_svd, optimize, CompletionReport, OptimizeOptions};
 pub use solve::{solve, solve_with_prior, CompletionOptions, Form, Init, Optimizer, Solution};
 
+pub(crate) use crate::linalg::mul;
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
 use rayon::prelude::*;
@@ -388,13 +389,6 @@ pub(crate) fn gemm_tn(a: MatRef<f64>, b: MatRef<f64>) -> Mat<f64> {
         sum += c;
     }
     sum
-}
-
-/// Small dense product a · b (sequential).
-pub(crate) fn mul(a: MatRef<f64>, b: MatRef<f64>) -> Mat<f64> {
-    let mut c = Mat::<f64>::zeros(a.nrows(), b.ncols());
-    matmul(c.as_mut(), Accum::Replace, a, b, 1.0, Par::Seq);
-    c
 }
 
 #[cfg(test)]

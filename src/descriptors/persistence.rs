@@ -59,7 +59,7 @@ use super::matching::{match_regions, RegionMatch};
 use super::signatures::{hks, hks_times, wks};
 use super::{segments, Descriptors};
 use crate::error::{Error, Result};
-use crate::eval::Distances;
+use crate::geodesic::Distances;
 use crate::geodesic::GeodesicMethod;
 use crate::laplacian::Laplacian;
 use crate::shape::{adjacency, PointSet, TriMesh};

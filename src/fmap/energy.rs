@@ -42,6 +42,7 @@
 //! (column-major vec; [`Energy::solve`]). Cost O(q (k_X k_Y)² + (k_X k_Y)³ / 3): 0.01 s at
 //! k = 30, ≈ 0.3 s at k = 50.
 
+use crate::linalg::mul;
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par, Side};
 use serde::{Deserialize, Serialize};
@@ -101,12 +102,6 @@ pub fn resolvent_mask(lx: &[f64], ly: &[f64], gamma: f64) -> Mat<f64> {
     };
     let (rx, ry): (Vec<_>, Vec<_>) = (lx.iter().map(|&l| r(l)).collect(), ly.iter().map(|&l| r(l)).collect());
     Mat::from_fn(ly.len(), lx.len(), |i, j| (ry[i].0 - rx[j].0).powi(2) + (ry[i].1 - rx[j].1).powi(2))
-}
-
-fn mul(a: MatRef<f64>, b: MatRef<f64>) -> Mat<f64> {
-    let mut out = Mat::<f64>::zeros(a.nrows(), b.ncols());
-    matmul(out.as_mut(), Accum::Replace, a, b, 1.0, Par::Seq);
-    out
 }
 
 /// Descriptor preservation `‖C Â − B̂‖²_F` (C: k_Y × k_X, Â: k_X × q, B̂: k_Y × q).

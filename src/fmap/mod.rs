@@ -25,6 +25,7 @@ pub use coupled::{coupled, CoupledInfo, CoupledOptions};
 pub use ovsjanikov::{ovsjanikov, OvsjanikovOptions};
 pub use pokrass::{pokrass, PokrassOptions};
 
+pub(crate) use crate::linalg::mul;
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
 
@@ -111,13 +112,6 @@ impl Problem {
     pub(crate) fn k(&self) -> usize {
         self.a.nrows()
     }
-}
-
-/// The product a · b as a new matrix.
-pub(crate) fn mul(a: MatRef<f64>, b: MatRef<f64>) -> Mat<f64> {
-    let mut out = Mat::<f64>::zeros(a.nrows(), b.ncols());
-    matmul(out.as_mut(), Accum::Replace, a, b, 1.0, Par::Seq);
-    out
 }
 
 /// Minimum-norm least-squares solution C of C Â ≈ B̂ (C = B̂ Â⁺), Â⁺ the pseudo-inverse from the

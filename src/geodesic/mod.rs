@@ -9,7 +9,7 @@
 //!   distance), a point cloud's kNN graph, or any weighted graph.
 //!
 //! [`GeodesicMethod`] picks one of the mesh methods by name and builds it behind
-//! [`crate::eval::Distances`], the interface the evaluation uses.
+//! [`Distances`], the interface the evaluation uses.
 //!
 //! Measured with `examples/geodesic_timing.rs` on the bundled FAUST `tr_reg_001` (5,000
 //! vertices, √area = 0.759), 2 cores shared with other jobs:
@@ -39,18 +39,19 @@
 //! the exact polyhedral distances are 0.015 % (mean) to 0.018 % (max) shorter than great-circle
 //! arcs, the inscribed polyhedron being slightly smaller than the sphere.
 
+mod distances;
 mod exact;
 mod graph;
 mod heat;
 mod intrinsic;
 mod topology;
 
+pub use distances::Distances;
 pub use exact::ExactGeodesics;
 pub use graph::GraphGeodesics;
 pub use heat::HeatGeodesics;
 
 use crate::error::{Error, Result};
-use crate::eval::Distances;
 use crate::shape::TriMesh;
 
 /// Which geodesic distance to use on a mesh (e.g. for evaluation; the CLI's `--geodesics`).
