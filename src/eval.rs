@@ -144,6 +144,7 @@ mod tests {
     use super::*;
     use crate::geodesic::HeatGeodesics;
     use crate::primitives::icosphere;
+    use faer::Mat;
 
     #[test]
     fn errors_across_components_are_errors_not_infinities() {
