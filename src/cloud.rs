@@ -128,7 +128,7 @@ fn neighbours(points: &[[f64; 3]], k: usize) -> Result<Vec<Vec<usize>>> {
     if k < 3 || k >= n {
         return Err(Error::invalid("neighbours", format!("need 3 ≤ K < n = {n}, got {k}")));
     }
-    Ok(crate::laplacian::knn3(points, k).into_iter().map(|nb| nb.into_iter().map(|(_, j)| j).collect()).collect())
+    Ok(crate::spatial::knn3(points, k).into_iter().map(|nb| nb.into_iter().map(|(_, j)| j).collect()).collect())
 }
 
 /// PCA normal of point i from its neighbourhood (unit; sign arbitrary).

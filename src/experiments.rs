@@ -15,12 +15,12 @@ use std::num::NonZero;
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
 
-use crate::benchmark::farthest_points;
 use crate::descriptors::{signatures as sig, Descriptors};
 use crate::error::{Error, Result};
 use crate::eval::{self, GroundTruth};
 use crate::geodesic::Distances;
 use crate::shape::TriMesh;
+use crate::spatial::farthest_points;
 use crate::spectral::Basis;
 
 /// For every vertex of Y (m), a vertex of X: the counterpart x_i of the template point y_i

@@ -8,13 +8,12 @@
 //! - Point clouds and abstract data: a symmetric K-nearest-neighbour graph with Gaussian weights
 //!   (1) and self-tuning bandwidth, vertex weights A = I (unnormalized) or A = D (random walk).
 
-use std::num::NonZero;
-
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::shape::{PointSet, TriMesh};
+use crate::spatial::knn;
 
 /// Which discretization produced a [`Laplacian`].
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -305,71 +304,6 @@ pub fn graph(n: usize, edges: &[(usize, usize, f64)], vertex_weights: VertexWeig
         }
     };
     Ok(Laplacian { w: assemble_symmetric(n, entries), mass, kind: LaplacianKind::Graph })
-}
-
-/// The K nearest neighbours of every 3-D point (excluding itself) by a k-d tree (kiddo): for
-/// point i, `K` pairs (squared distance, index), ascending, ties by index. The caller checks
-/// 1 ≤ K < n.
-pub(crate) fn knn3(points: &[[f64; 3]], k: usize) -> Vec<Vec<(f64, usize)>> {
-    let tree: kiddo::ImmutableKdTree<f64, 3> = kiddo::ImmutableKdTree::new_from_slice(points);
-    let want = NonZero::new(k + 1).expect("k + 1 > 0");
-    points
-        .par_iter()
-        .enumerate()
-        .map(|(i, q)| {
-            let mut nb: Vec<(f64, usize)> = tree
-                .nearest_n::<kiddo::SquaredEuclidean>(q, want)
-                .into_iter()
-                .map(|nn| (nn.distance, nn.item as usize))
-                .filter(|&(_, j)| j != i)
-                .collect();
-            nb.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            nb.truncate(k);
-            nb
-        })
-        .collect()
-}
-
-/// The K nearest neighbours of every point (excluding itself): for point i, `K` pairs
-/// (squared distance, index), ascending. Exact.
-///
-/// d = 3 uses a k-d tree (kiddo); other dimensions use a parallel brute-force scan (kiddo's
-/// dimension is a compile-time constant, and k-d trees lose their edge in high dimension).
-pub fn knn(points: &PointSet, k: usize) -> Result<Vec<Vec<(f64, usize)>>> {
-    let n = points.len();
-    if k == 0 || k >= n {
-        return Err(Error::invalid("knn", format!("K = {k} neighbours needs 1 ≤ K < n = {n}")));
-    }
-    let result: Vec<Vec<(f64, usize)>> = if points.dim() == 3 {
-        let pts: Vec<[f64; 3]> = (0..n)
-            .map(|i| {
-                let p = points.point(i);
-                [p[0], p[1], p[2]]
-            })
-            .collect();
-        knn3(&pts, k)
-    } else {
-        (0..n)
-            .into_par_iter()
-            .map(|i| {
-                let p = points.point(i);
-                let mut all: Vec<(f64, usize)> = (0..n)
-                    .filter(|&j| j != i)
-                    .map(|j| (p.iter().zip(points.point(j)).map(|(a, b)| (a - b) * (a - b)).sum(), j))
-                    .collect();
-                let cmp = |a: &(f64, usize), b: &(f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
-                all.select_nth_unstable_by(k - 1, cmp);
-                all.truncate(k);
-                all.sort_by(cmp);
-                all
-            })
-            .collect()
-    };
-    // With many coincident points a k-d tree query may return fewer than K others.
-    if let Some(i) = result.iter().position(|nb| nb.len() < k) {
-        return Err(Error::invalid("knn", format!("point {i} has fewer than K = {k} distinct neighbours")));
-    }
-    Ok(result)
 }
 
 /// Graph Laplacian of a point cloud or feature matrix (paper eq. (1)): the symmetric kNN graph

@@ -39,6 +39,7 @@ pub mod primitives;
 pub mod refine;
 mod rng;
 pub mod shape;
+pub mod spatial;
 pub mod spectral;
 pub mod viz;
 

@@ -3,6 +3,7 @@
 
 #[allow(unused_imports)]
 use super::*;
+use crate::spatial::farthest_points;
 
 /// The data functions of a benchmark run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -107,33 +108,6 @@ pub fn prepare_shape(ds: &Dataset, name: &str, k: usize, cache: Option<&BasisCac
     }
     let prepared = crate::prepared::PreparedShape::new(shape, crate::prepared::LaplacianChoice::Cotangent, k, cache)?;
     Ok(PreparedShape { name: name.to_string(), prepared, seconds: t.elapsed().as_secs_f64() })
-}
-
-/// Farthest-point sampling of `count` of the `candidates` (vertex ids of `mesh`) by Euclidean
-/// distance, starting from the first candidate; returns positions into `candidates`.
-/// Deterministic; fewer than `count` when there are fewer distinct candidates.
-pub fn farthest_points(mesh: &TriMesh, candidates: &[usize], count: usize) -> Vec<usize> {
-    let v = mesh.vertices();
-    let d2 = |a: usize, b: usize| (0..3).map(|c| (v[a][c] - v[b][c]).powi(2)).sum::<f64>();
-    let mut chosen = Vec::with_capacity(count);
-    if candidates.is_empty() || count == 0 {
-        return chosen;
-    }
-    let mut best = vec![f64::INFINITY; candidates.len()];
-    let mut next = 0;
-    while chosen.len() < count {
-        chosen.push(next);
-        let c = candidates[next];
-        for (b, &p) in best.iter_mut().zip(candidates) {
-            *b = b.min(d2(p, c));
-        }
-        let (i, far) = best.iter().enumerate().fold((0, -1.0), |acc, (i, &d)| if d > acc.1 { (i, d) } else { acc });
-        if far <= 0.0 {
-            break;
-        }
-        next = i;
-    }
-    chosen
 }
 
 /// The data F (n × q) on X and G (m × q) on Y of the pair (x, y) for `spec`.

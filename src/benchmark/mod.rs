@@ -229,18 +229,4 @@ mod tests {
         assert!(Dataset::open(&empty).unwrap_err().to_string().contains("corres"));
         let _ = std::fs::remove_dir_all(&dir);
     }
-
-    #[test]
-    fn farthest_points_spread_out() {
-        let mesh = crate::primitives::icosphere(2);
-        let all: Vec<usize> = (0..mesh.n_vertices()).collect();
-        let p = farthest_points(&mesh, &all, 2);
-        // The second point is antipodal to the first on the unit sphere.
-        let (a, b) = (mesh.vertices()[p[0]], mesh.vertices()[p[1]]);
-        let d: f64 = (0..3).map(|c| (a[c] - b[c]).powi(2)).sum::<f64>().sqrt();
-        assert!((d - 2.0).abs() < 1e-9, "{d}");
-        // Duplicated candidates: never more distinct points than exist.
-        assert_eq!(farthest_points(&mesh, &[3, 3, 3], 5), vec![0]);
-        assert!(farthest_points(&mesh, &[], 5).is_empty());
-    }
 }

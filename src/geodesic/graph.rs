@@ -103,11 +103,11 @@ impl GraphGeodesics {
     }
 
     /// The symmetric K-nearest-neighbour graph of `points` (any dimension d; Euclidean edge
-    /// lengths; neighbours from [`crate::laplacian::knn`], a k-d tree for d = 3).
+    /// lengths; neighbours from [`crate::spatial::knn`], a k-d tree for d = 3).
     ///
-    /// Errors: those of [`crate::laplacian::knn`] (K = 0 or K ≥ n, too many duplicate points).
+    /// Errors: those of [`crate::spatial::knn`] (K = 0 or K ≥ n, too many duplicate points).
     pub fn knn(points: &PointSet, k: usize) -> Result<Self> {
-        let nbrs = crate::laplacian::knn(points, k)?;
+        let nbrs = crate::spatial::knn(points, k)?;
         let edges: Vec<(usize, usize, f64)> =
             nbrs.iter().enumerate().flat_map(|(i, nb)| nb.iter().map(move |&(d2, j)| (i, j, d2.sqrt()))).collect();
         Self::from_edges(points.len(), &edges)

@@ -22,8 +22,8 @@ use std::path::Path;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::laplacian::knn;
 use crate::shape::{PointSet, TriMesh};
+use crate::spatial::knn;
 
 /// Largest accepted image width or height, in pixels.
 pub const MAX_SIZE: u32 = 16384;
