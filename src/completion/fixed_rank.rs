@@ -26,8 +26,8 @@ use std::time::Instant;
 use faer::{Mat, MatRef};
 
 use super::full::{metric, scale_rows, unscale_rows, FullProblem};
+use super::lbfgs::{CompletionReport, OptimizeOptions};
 use super::objective::{gradient_c, value, CompletionParams, Terms};
-use super::optimize::{CompletionReport, OptimizeOptions};
 use super::{gemm_nn, gemm_tn, mul, Problem};
 use crate::error::{Error, Result};
 

@@ -6,8 +6,85 @@ use std::collections::VecDeque;
 use std::time::Instant;
 
 use super::objective::Terms;
-use super::optimize::{CompletionReport, OptimizeOptions};
+use serde::Serialize;
+
 use crate::error::{Error, Result};
+
+/// Options of the completion optimizers ([`super::optimize`], [`minimize`], the Riemannian CG of
+/// the fixed-rank form).
+#[derive(Clone, Debug, Serialize)]
+pub struct OptimizeOptions {
+    /// Iteration cap.
+    pub max_iterations: usize,
+    /// Stop when the relative decrease of the objective in one iteration, (f_old − f)/|f_old|,
+    /// falls to this value or below.
+    pub rel_tol: f64,
+    /// Also stop when ‖∇f‖ ≤ `grad_tol`·‖∇f(x₀)‖.
+    pub grad_tol: f64,
+    /// Number of (s, y) pairs L-BFGS keeps.
+    pub memory: usize,
+    /// Objective evaluations allowed per line search.
+    pub max_line_search: usize,
+    /// Sufficient-decrease constant c1 of the Wolfe conditions.
+    pub c1: f64,
+    /// Curvature constant c2 of the strong Wolfe conditions.
+    pub c2: f64,
+}
+
+impl Default for OptimizeOptions {
+    fn default() -> Self {
+        OptimizeOptions {
+            max_iterations: 300,
+            rel_tol: 1e-6,
+            grad_tol: 1e-10,
+            memory: 10,
+            max_line_search: 25,
+            c1: 1e-4,
+            c2: 0.9,
+        }
+    }
+}
+
+/// What an optimizer of the completion method did.
+#[derive(Clone, Debug, Serialize)]
+pub struct CompletionReport {
+    /// Accepted L-BFGS steps.
+    pub iterations: usize,
+    /// Objective + gradient evaluations, line searches included.
+    pub evaluations: usize,
+    /// True when a tolerance was met (not the iteration cap or a failed line search).
+    pub converged: bool,
+    /// Why the optimization stopped.
+    pub stop_reason: String,
+    /// The weighted terms at the start.
+    pub initial_terms: Terms,
+    /// The weighted terms at the end.
+    pub terms: Terms,
+    /// The objective after each iteration, starting with the initial value.
+    pub objective_history: Vec<f64>,
+    /// ‖∇f‖ at the start.
+    pub gradient_norm_initial: f64,
+    /// ‖∇f‖ at the end.
+    pub gradient_norm_final: f64,
+    /// Wall time of the whole optimization.
+    pub seconds_total: f64,
+    /// Wall time per iteration (total / max(iterations, 1)).
+    pub seconds_per_iteration: f64,
+}
+
+impl OptimizeOptions {
+    /// The stopping rule shared by the optimizers, after an accepted step from objective
+    /// `f_old` to `f` with gradient norm `g_norm` (`g0_norm` at the start): why to stop, if so.
+    pub(crate) fn converged(&self, f_old: f64, f: f64, g_norm: f64, g0_norm: f64) -> Option<String> {
+        if f_old - f <= self.rel_tol * f_old.abs() {
+            Some(format!("relative objective change ≤ {:e}", self.rel_tol))
+        } else if g_norm <= self.grad_tol * g0_norm {
+            Some(format!("gradient norm ≤ {:e} of its initial value", self.grad_tol))
+        } else {
+            None
+        }
+    }
+}
 
 pub(crate) fn dot(x: &[f64], y: &[f64]) -> f64 {
     x.iter().zip(y).map(|(a, b)| a * b).sum()

@@ -62,7 +62,8 @@ pub mod terms;
 
 pub use objective::{evaluate, value, CompletionParams, Evaluation, LowNorm, Terms};
 // Scaling is defined below.
-pub use optimize::{init_from_c, init_from_svd, optimize, CompletionReport, OptimizeOptions};
+pub use lbfgs::{CompletionReport, OptimizeOptions};
+pub use optimize::{init_from_c, init_from_svd, optimize};
 pub use solve::{solve, solve_with_prior, CompletionOptions, Form, Init, Optimizer, Solution};
 
 pub(crate) use crate::linalg::mul;

@@ -49,6 +49,11 @@
 //!
 //! Everything is deterministic; the regions (as vertex sets) do not depend on the vertex
 //! numbering, except through exact ties in the stability comparison.
+//!
+//! **Why one file (≈ 700 lines without tests).** The component tree is built once and read by
+//! the stability measure, the region extraction and the matching of regions between two
+//! shapes, which share its private helpers (graph checks, quantization, union-find); the steps
+//! are one algorithm and have no other users.
 
 use faer::Mat;
 

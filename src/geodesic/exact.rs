@@ -25,6 +25,10 @@
 //! - early termination: every queue key is a lower bound of the distances of everything
 //!   propagated from that entry, so once the smallest key reaches a target's current distance
 //!   that distance is final.
+//!
+//! **Why one file (≈ 650 lines; tests in `exact/tests.rs`).** The window propagation, its event
+//! queue and the early-terminating point queries operate on one private edge/window structure
+//! and are only correct together (MMP's invariants span all three).
 
 use std::collections::BinaryHeap;
 
