@@ -61,8 +61,8 @@ use super::matching::{self, RegionMatch};
 use super::signatures;
 use super::Descriptors;
 use crate::error::{Error, Result};
-use crate::shape::adjacency;
 use crate::shape::TriMesh;
+use crate::shape::{adjacency, UnionFind};
 use crate::spectral::Basis;
 
 /// Which extremal regions: components of high or of low weighting values.
@@ -246,15 +246,6 @@ fn check_graph(n: usize, edges: &[[u32; 2]], mass: &[f64]) -> Result<()> {
     Ok(())
 }
 
-fn find(uf: &mut [u32], mut i: u32) -> u32 {
-    while uf[i as usize] != i {
-        let p = uf[uf[i as usize] as usize];
-        uf[i as usize] = p;
-        i = p;
-    }
-    i
-}
-
 impl ComponentTree {
     /// Builds the tree of the graph with `n` vertices, undirected `edges` (self-loops and
     /// duplicates are fine), vertex weights `mass` (≥ 0) and vertex `levels`, by union-find in
@@ -268,7 +259,7 @@ impl ComponentTree {
 
         let mut sweep: Vec<u32> = (0..n as u32).collect();
         sweep.sort_unstable_by_key(|&v| (levels[v as usize], v));
-        let mut uf: Vec<u32> = (0..n as u32).collect();
+        let mut uf = UnionFind::new(n);
         let mut added = vec![false; n];
         let mut root_node = vec![u32::MAX; n];
         let mut nodes: Vec<TreeNode> = Vec::with_capacity(n);
@@ -286,14 +277,13 @@ impl ComponentTree {
                 if !added[u as usize] {
                     continue;
                 }
-                let (ru, rv) = (find(&mut uf, u), find(&mut uf, v));
+                let (ru, rv) = (uf.find(u), uf.find(v));
                 if ru == rv {
                     continue;
                 }
                 let merged = Self::merge(&mut nodes, &mut redirect, root_node[ru as usize], root_node[rv as usize], l);
-                let (lo, hi) = (ru.min(rv), ru.max(rv));
-                uf[hi as usize] = lo;
-                root_node[lo as usize] = merged;
+                uf.union(ru, rv); // the smaller root survives
+                root_node[ru.min(rv) as usize] = merged;
             }
         }
 
