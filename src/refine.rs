@@ -247,10 +247,33 @@ pub fn zoomout_with(
     block: Option<DescriptorBlock>,
     opts: &ZoomOutOptions,
 ) -> Result<(Mat<f64>, Vec<usize>)> {
+    check_zoomout(phi, psi, c0, opts)?;
+    let c = zoomout_iterations(phi, psi, samples, c0.to_owned(), block, opts)?;
+    let map = map_of_pullback_with(phi, psi, c.as_ref(), block, None)?;
+    Ok((c, map))
+}
+
+/// The iterations of [`zoomout`] on the samples only: the final K × K map C_yx, without the
+/// point map of every vertex (for callers that read the map off differently, such as
+/// [`bijective_polish`]). Errors as [`zoomout`].
+pub fn zoomout_fmap(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    samples: &Samples,
+    c0: MatRef<f64>,
+    opts: &ZoomOutOptions,
+) -> Result<Mat<f64>> {
+    check_zoomout(phi, psi, c0, opts)?;
+    zoomout_iterations(phi, psi, samples, c0.to_owned(), None, opts)
+}
+
+/// The argument checks of [`zoomout`]: a square start no larger than K, K within the bases,
+/// step ≥ 1.
+fn check_zoomout(phi: MatRef<f64>, psi: MatRef<f64>, c0: MatRef<f64>, opts: &ZoomOutOptions) -> Result<()> {
     let k0 = c0.nrows();
     let kf = opts.k_final;
     if c0.ncols() != k0 || k0 == 0 || kf < k0 || kf > phi.ncols() || kf > psi.ncols() || opts.step == 0 {
-        return Err(Error::invalid(
+        Err(Error::invalid(
             "zoomout",
             format!(
                 "need a square start C (got {}×{}), its size ≤ K ≤ the basis sizes ({}, {}) and step ≥ 1; got K = {kf}, step {}",
@@ -260,17 +283,27 @@ pub fn zoomout_with(
                 psi.ncols(),
                 opts.step
             ),
-        ));
+        ))
+    } else {
+        Ok(())
     }
-    let mut c = c0.to_owned();
-    let mut k = k0;
-    while k < kf {
+}
+
+fn zoomout_iterations(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    samples: &Samples,
+    mut c: Mat<f64>,
+    block: Option<DescriptorBlock>,
+    opts: &ZoomOutOptions,
+) -> Result<Mat<f64>> {
+    let mut k = c.nrows();
+    while k < opts.k_final {
         let map = map_of_pullback_with(phi, psi, c.as_ref(), block, Some(&samples.vertices))?;
-        k = (k + opts.step).min(kf);
+        k = (k + opts.step).min(opts.k_final);
         c = pullback(phi, psi, samples, &map, k, k)?;
     }
-    let map = map_of_pullback_with(phi, psi, c.as_ref(), block, None)?;
-    Ok((c, map))
+    Ok(c)
 }
 
 /// Options of [`bijective_zoomout`].
@@ -376,6 +409,29 @@ fn bijective_map(
     Ok(nearest_neighbors(reference.as_ref(), query.as_ref())?.into_iter().map(|t| refs[t]).collect())
 }
 
+/// One round of the bijective refinement: both point maps on the samples of their shape (each
+/// against every vertex of the other shape, or with `sampled_references` against its samples
+/// only), then both functional maps at size `k`. Returns (C_yx, C_xy).
+#[allow(clippy::too_many_arguments)]
+fn bijective_round(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    sx: &Samples,
+    sy: &Samples,
+    (c_yx, c_xy): (MatRef<f64>, MatRef<f64>),
+    k: usize,
+    w: f64,
+    sampled_references: bool,
+) -> Result<(Mat<f64>, Mat<f64>)> {
+    let (ry, rx) = if sampled_references { (Some(&sy.vertices[..]), Some(&sx.vertices[..])) } else { (None, None) };
+    let map_xy = bijective_map(phi, psi, c_yx, c_xy, w, Some(&sx.vertices), ry)?;
+    let map_yx = bijective_map(psi, phi, c_xy, c_yx, w, Some(&sy.vertices), rx)?;
+    Ok((
+        bijective_fmap(phi, psi, sx, &map_xy, sy, &map_yx, k, w)?,
+        bijective_fmap(psi, phi, sy, &map_yx, sx, &map_xy, k, w)?,
+    ))
+}
+
 /// Bijective ZoomOut: the discrete solver of Ren, Melzi, Wonka, Ovsjanikov 2021 with its
 /// coupling and bijectivity terms (as in the bijective ZoomOut of Magnet et al.'s
 /// SmoothFunctionalMaps): both point maps π_xy, π_yx and both pull-backs C_yx, C_xy are refined
@@ -414,11 +470,8 @@ pub fn bijective_zoomout(
     let (mut c_yx, mut c_xy) = (c_yx0.to_owned(), c_xy0.to_owned());
     let mut k = k0;
     while k < kf {
-        let map_xy = bijective_map(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, Some(&sx.vertices), None)?;
-        let map_yx = bijective_map(psi, phi, c_xy.as_ref(), c_yx.as_ref(), w, Some(&sy.vertices), None)?;
         k = (k + opts.step).min(kf);
-        c_yx = bijective_fmap(phi, psi, sx, &map_xy, sy, &map_yx, k, w)?;
-        c_xy = bijective_fmap(psi, phi, sy, &map_yx, sx, &map_xy, k, w)?;
+        (c_yx, c_xy) = bijective_round(phi, psi, sx, sy, (c_yx.as_ref(), c_xy.as_ref()), k, w, false)?;
     }
     let map_xy = bijective_map(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, None, None)?;
     let map_yx = bijective_map(psi, phi, c_xy.as_ref(), c_yx.as_ref(), w, None, None)?;
@@ -460,10 +513,7 @@ pub fn bijective_polish(
     let w = POLISH_BIJECTIVITY;
     let (mut c_yx, mut c_xy) = (c_yx.to_owned(), c_yx.transpose().to_owned());
     for _ in 0..rounds {
-        let map_xy = bijective_map(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, Some(&sx.vertices), Some(&sy.vertices))?;
-        let map_yx = bijective_map(psi, phi, c_xy.as_ref(), c_yx.as_ref(), w, Some(&sy.vertices), Some(&sx.vertices))?;
-        c_yx = bijective_fmap(phi, psi, sx, &map_xy, sy, &map_yx, k, w)?;
-        c_xy = bijective_fmap(psi, phi, sy, &map_yx, sx, &map_xy, k, w)?;
+        (c_yx, c_xy) = bijective_round(phi, psi, sx, sy, (c_yx.as_ref(), c_xy.as_ref()), k, w, true)?;
     }
     let map_xy = bijective_map(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, None, None)?;
     Ok((c_yx, map_xy))

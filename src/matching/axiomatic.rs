@@ -274,32 +274,50 @@ pub fn axiomatic_pipeline(
         (true, Some(c)) => c,
         _ => c_fit.clone(),
     };
-    let (c_yx, map_xy) = if p.refine.k_final > 0 && p.bijective > 0.0 {
-        let (sx, sy) = (samples_of(x, p.refine.samples)?, samples_of(y, p.refine.samples)?);
-        let o = refine::BijectiveOptions {
-            k_final: p.refine.k_final.max(c_fit.nrows()),
-            step: p.refine.step,
-            bijectivity: p.bijective,
+    let (c_yx, map_xy) = if p.refine.k_final == 0 {
+        let unrefined = (c_fit.clone(), refine::map_of_pullback(phi, psi, c_fit.as_ref(), None)?);
+        stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
+        unrefined
+    } else {
+        // Samples computed once for ZoomOut (or its bijective variant) and the polish.
+        let sx = samples_of(x, p.refine.samples)?;
+        let sy = if p.bijective > 0.0 || p.polish > 0 { Some(samples_of(y, p.refine.samples)?) } else { None };
+        let (c, map) = match &sy {
+            Some(sy) if p.bijective > 0.0 => {
+                let o = refine::BijectiveOptions {
+                    k_final: p.refine.k_final.max(c_fit.nrows()),
+                    step: p.refine.step,
+                    bijectivity: p.bijective,
+                };
+                let c_xy0 = c_fit.transpose().to_owned();
+                let (c, m, _) = refine::bijective_zoomout(phi, psi, &sx, sy, c_fit.as_ref(), c_xy0.as_ref(), &o)?;
+                (c, Some(m))
+            }
+            _ => {
+                let o = ZoomOutOptions { k_final: p.refine.k_final.max(c_start.nrows()), step: p.refine.step };
+                if p.polish > 0 {
+                    // The polish reads the point map off itself.
+                    (refine::zoomout_fmap(phi, psi, &sx, c_start.as_ref(), &o)?, None)
+                } else {
+                    let (c, m) = refine::zoomout(phi, psi, &sx, c_start.as_ref(), &o)?;
+                    (c, Some(m))
+                }
+            }
         };
-        let c_xy0 = c_fit.transpose().to_owned();
-        let (c, m, _) = refine::bijective_zoomout(phi, psi, &sx, &sy, c_fit.as_ref(), c_xy0.as_ref(), &o)?;
-        (c, m)
-    } else if p.refine.k_final > 0 {
-        let samples = samples_of(x, p.refine.samples)?;
-        let o = ZoomOutOptions { k_final: p.refine.k_final.max(c_start.nrows()), step: p.refine.step };
-        refine::zoomout(phi, psi, &samples, c_start.as_ref(), &o)?
-    } else {
-        (c_fit.clone(), refine::map_of_pullback(phi, psi, c_fit.as_ref(), None)?)
-    };
-    stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
-    let (c_yx, map_xy) = if p.polish > 0 && p.refine.k_final > 0 {
-        let t = std::time::Instant::now();
-        let (sx, sy) = (samples_of(x, p.refine.samples)?, samples_of(y, p.refine.samples)?);
-        let polished = refine::bijective_polish(phi, psi, &sx, &sy, c_yx.as_ref(), p.polish)?;
-        stages.push(("polish".to_string(), t.elapsed().as_secs_f64()));
-        polished
-    } else {
-        (c_yx, map_xy)
+        stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
+        match map {
+            Some(m) if p.polish == 0 => (c, m),
+            _ => {
+                let t = std::time::Instant::now();
+                let sy = match sy {
+                    Some(sy) => sy,
+                    None => samples_of(y, p.refine.samples)?,
+                };
+                let polished = refine::bijective_polish(phi, psi, &sx, &sy, c.as_ref(), p.polish)?;
+                stages.push(("polish".to_string(), t.elapsed().as_secs_f64()));
+                polished
+            }
+        }
     };
     Ok(AxiomaticResult { map_xy, c_yx, c_fit, candidates, chosen, stages })
 }
