@@ -11,8 +11,9 @@ use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
 
-use funcorr::benchmark::{self, BenchMethod, BenchOptions, DataSpec, Dataset, Report};
+use funcorr::benchmark::{self, BenchMethod, BenchOptions, Dataset, Report};
 use funcorr::completion::{CompletionOptions, Form};
+use funcorr::descriptors::spec::PairDataSpec;
 use funcorr::experiments::Sterile;
 use funcorr::io::staged::StagedDir;
 use funcorr::viz::plot::{LinePlot, Series};
@@ -40,7 +41,8 @@ pub(crate) struct BenchArgs {
     /// .seg.nonsym), `wks:N` (`wks` alone: 100 energies from the first 128 eigenpairs, every 2nd
     /// kept), `rich` (100 WKS + 100 heat kernel maps
     /// localized on the segments),
-    /// or `landmarks:N` (delta functions at N ground-truth landmarks).
+    /// or `landmarks:N` (delta functions at N ground-truth landmarks); also the per-shape forms
+    /// of `funcorr match --data` that name no file (`hks:N`, `wks+hks:N`, `persistence`, `mser`).
     #[arg(long, default_value = "segments")]
     data: String,
     /// Do not allow symmetric flips (default: allowed, with corres/NAME.sym.vts, as the paper).
@@ -98,16 +100,17 @@ fn run_benchmark(
     ds: &Dataset,
     pairs: &[(String, String)],
     methods: &[MethodChoice],
-    data: DataSpec,
+    data: PairDataSpec,
     options: &dyn Fn(MethodChoice, bool) -> Result<funcorr::matching::MatchOptions>,
     symmetric: bool,
     geodesics: GeodesicsChoice,
     cache: &CacheArgs,
     quiet: bool,
 ) -> Result<Report> {
+    let is_rich = data.is_rich();
     let methods = methods
         .iter()
-        .map(|&m| Ok(BenchMethod { name: method_name(m).to_string(), options: options(m, data.is_rich())? }))
+        .map(|&m| Ok(BenchMethod { name: method_name(m).to_string(), options: options(m, is_rich)? }))
         .collect::<Result<Vec<_>>>()?;
     let opts = BenchOptions { data, methods, symmetric, geodesics: geodesics.into(), cache: cache.cache() };
     let pb = stage_bar(quiet);
@@ -157,7 +160,7 @@ fn publish(staged: StagedDir, paths: &[PathBuf]) -> Result<()> {
 }
 
 pub(crate) fn bench(args: &BenchArgs) -> Result<()> {
-    let data: DataSpec = args.data.parse()?;
+    let data = args.data.parse::<PairDataSpec>()?.for_dataset()?;
     let ds = Dataset::open(&args.dataset)?;
     let pairs = select_pairs(&ds, args.pairs.as_deref(), args.limit)?;
     let pool = thread_pool(args.jobs)?;
@@ -166,7 +169,7 @@ pub(crate) fn bench(args: &BenchArgs) -> Result<()> {
             &ds,
             &pairs,
             &args.methods,
-            data,
+            data.clone(),
             &|m, rich| pipeline_options(&args.pipe, m, rich),
             !args.no_symmetric,
             args.geodesics,
@@ -572,7 +575,9 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
     let mut table = String::new();
     let mut written = Vec::new();
     let staged = StagedDir::create(&a.output)?;
-    for (setting, data) in [("scarce", DataSpec::Segments { symmetric: true }), ("rich", DataSpec::Rich)] {
+    for (setting, data) in
+        [("scarce", PairDataSpec::DatasetSegments { symmetric: true }), ("rich", PairDataSpec::Rich(None))]
+    {
         // The paper's settings: k' = 350, k = 250 (scarce) and k' = 50, k = 30 (rich) for the
         // completion method, k for the baselines the same, ICP refinement.
         let options = |m: MethodChoice, rich: bool| -> Result<funcorr::matching::MatchOptions> {
@@ -584,7 +589,17 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
             Ok(o)
         };
         let report = pool.install(|| {
-            run_benchmark(&ds, &pairs, &a.methods, data, &options, true, GeodesicsChoice::Exact, &a.cache, a.quiet)
+            run_benchmark(
+                &ds,
+                &pairs,
+                &a.methods,
+                data.clone(),
+                &options,
+                true,
+                GeodesicsChoice::Exact,
+                &a.cache,
+                a.quiet,
+            )
         })?;
         let title = format!("{setting} data ({data}), {} pairs", pairs.len());
         written.extend(report.write(&staged.join(setting), &title).map_err(|e| staged.attribute(e))?);

@@ -123,7 +123,7 @@ pub(crate) fn write_colour_transfer(
 pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     let mut st = Stages { quiet: args.quiet, parts: vec![] };
     // A malformed --data fails before any work.
-    args.data.parse::<funcorr::descriptors::spec::PairDataSpec>()?;
+    args.data.parse::<funcorr::descriptors::spec::PairDataSpec>()?.standalone()?;
     let opts = match_options(args)?;
     let view = funcorr::viz::View::parse(&args.view)?;
     let size = parse_size(&args.size)?;

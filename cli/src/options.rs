@@ -103,7 +103,7 @@ pub(crate) fn pair_data(
     y: (&Shape, &Laplacian, &Basis),
     seg: &SegmentationArgs,
 ) -> Result<(funcorr::descriptors::Descriptors, funcorr::descriptors::Descriptors)> {
-    spec.parse::<funcorr::descriptors::spec::PairDataSpec>()?.functions(x, y, &seg.options())
+    spec.parse::<funcorr::descriptors::spec::PairDataSpec>()?.standalone()?.functions(x, y, &seg.options())
 }
 
 /// Whether a `--data` spec is the paper's rich setting (many functions) rather than scarce data.

@@ -922,6 +922,12 @@ fn bench_rejects_bad_data_sets_and_options() {
     let o = out.to_str().unwrap();
     assert_fails(&run(&["bench", "--dataset", "/nonexistent/dataset", "-o", o]), "/nonexistent/dataset");
     assert_fails(&run(&["bench", "--dataset", d, "--data", "wks:0", "-o", o]), "--data");
+    // One `--data` grammar: the forms naming files of one pair are refused by `bench`, and the
+    // data-set forms by `match`, each naming the option and what to write instead.
+    assert_fails(&run(&["bench", "--dataset", d, "--data", "segments:a.txt,b.txt", "-o", o]), "one pair");
+    let (xs, ys) = (data("tr_reg_000.off"), data("tr_reg_001.off"));
+    let (xs, ys) = (xs.to_str().unwrap(), ys.to_str().unwrap());
+    assert_fails(&run(&["match", xs, ys, "--data", "landmarks:12", "-o", o]), "landmarks:F");
     assert_fails(&run(&["bench", "--dataset", d, "--limit", "0", "-o", o]), "--limit");
     let pairs = out.join("pairs.txt");
     std::fs::write(&pairs, "tr_reg_000\ttr_reg_001\n# comment\ntr_reg_000 nobody\n").unwrap();

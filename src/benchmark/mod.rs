@@ -15,14 +15,15 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
-use std::str::FromStr;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::descriptors::{self as desc, signatures as sig, Descriptors};
+use crate::descriptors::persistence::SegmentationOptions;
+use crate::descriptors::spec::PairDataSpec;
+use crate::descriptors::{self as desc, Descriptors};
 use crate::error::{Error, Result};
 use crate::eval::{self, GroundTruth, Summary};
 use crate::geodesic::GeodesicMethod;
@@ -168,21 +169,24 @@ impl Dataset {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::descriptors::signatures as sig;
 
     #[test]
     fn data_specs_parse_and_print() {
+        // The data set's forms in the one `--data` grammar ([`PairDataSpec`]).
+        let p = |s: &str| s.parse::<PairDataSpec>().and_then(PairDataSpec::for_dataset);
         for s in ["segments", "segments:nonsym", "wks:100", "rich", "landmarks:12"] {
-            assert_eq!(s.parse::<DataSpec>().unwrap().to_string(), s);
+            assert_eq!(p(s).unwrap().to_string(), s);
         }
-        assert_eq!("segments:sym".parse::<DataSpec>().unwrap(), DataSpec::Segments { symmetric: true });
+        assert_eq!(p("segments:sym").unwrap(), PairDataSpec::DatasetSegments { symmetric: true });
         // A count is optional for wks: 100 WKS, as in `funcorr match --data wks`.
-        assert_eq!("wks".parse::<DataSpec>().unwrap(), DataSpec::WksDefault);
+        assert_eq!(p("wks").unwrap(), PairDataSpec::WksRecipe);
         assert_eq!(sig::DEFAULT_COUNT, 100);
-        for bad in ["", "wks:", "wks:0", "wks:x", "landmarks:-3", "rich:3", "segments:odd", "mser"] {
-            let e = bad.parse::<DataSpec>().unwrap_err().to_string();
+        for bad in ["", "wks:", "wks:0", "wks:x", "landmarks:-3", "rich:3", "segments:odd", "mser:x"] {
+            let e = p(bad).unwrap_err().to_string();
             assert!(e.contains("--data"), "{bad}: {e}");
         }
-        assert!(DataSpec::Rich.is_rich() && !DataSpec::Landmarks(3).is_rich());
+        assert!(p("rich").unwrap().is_rich() && !p("landmarks:3").unwrap().is_rich());
     }
 
     #[test]

@@ -39,7 +39,7 @@ pub struct MethodSummary {
 #[derive(Debug, Clone)]
 pub struct Report {
     /// Data spec of the run.
-    pub data: DataSpec,
+    pub data: PairDataSpec,
     /// Whether symmetric flips were allowed.
     pub symmetric: bool,
     /// The geodesic solver.
@@ -90,7 +90,7 @@ impl Report {
 
     /// The plot of the pooled cumulative curves, one line per method (dashed for scarce data).
     pub fn plot(&self, title: &str) -> crate::viz::plot::LinePlot {
-        plot_of(self.data, &self.summaries(), title)
+        plot_of(&self.data, &self.summaries(), title)
     }
 
     /// Writes the run to `out` (created): `pairs.csv` (one row per pair and method),
@@ -169,7 +169,7 @@ impl Report {
         written.push(write("summary.json", serde_json::to_string_pretty(&json).expect("plain JSON"))?);
         if summaries.iter().any(|m| m.pairs > 0) {
             let p = out.join("curves.png");
-            plot_of(self.data, &summaries, title).write_png(&p, 900, 640)?;
+            plot_of(&self.data, &summaries, title).write_png(&p, 900, 640)?;
             written.push(p);
         }
         Ok(written)
@@ -202,7 +202,7 @@ pub(crate) fn table_of(summaries: &[MethodSummary]) -> String {
 }
 
 /// The plot of [`Report::plot`] from per-method summaries.
-pub(crate) fn plot_of(data: DataSpec, summaries: &[MethodSummary], title: &str) -> crate::viz::plot::LinePlot {
+pub(crate) fn plot_of(data: &PairDataSpec, summaries: &[MethodSummary], title: &str) -> crate::viz::plot::LinePlot {
     let dashed = !data.is_rich();
     let curves: Vec<(String, Vec<f64>, bool, usize)> = summaries
         .iter()

@@ -16,7 +16,7 @@ pub struct BenchMethod {
 #[derive(Debug, Clone)]
 pub struct BenchOptions {
     /// The data functions.
-    pub data: DataSpec,
+    pub data: PairDataSpec,
     /// The methods, run one after the other on each pair.
     pub methods: Vec<BenchMethod>,
     /// Allow symmetric flips (needs `corres/NAME.sym.vts`).
@@ -83,7 +83,7 @@ pub fn run_pair(ds: &Dataset, x: &PreparedShape, y: &PreparedShape, opts: &Bench
         Err(e) => return fail(e.to_string()),
     };
     let t = Instant::now();
-    let (f, g) = match pair_data(ds, x, y, &gt, opts.data) {
+    let (f, g) = match pair_data(ds, x, y, &gt, &opts.data) {
         Ok(d) => d,
         Err(e) => return fail(format!("data {}: {e}", opts.data)),
     };
@@ -183,7 +183,7 @@ pub fn run(
         })
         .collect();
     Ok(Report {
-        data: opts.data,
+        data: opts.data.clone(),
         symmetric: opts.symmetric,
         geodesics: opts.geodesics,
         methods: opts.methods.iter().map(|m| m.name.clone()).collect(),

@@ -1,6 +1,12 @@
-//! The `--data` specification of `funcorr match`: which corresponding functions F on X and G on
-//! Y to use, parsed from a short string before any work is done (so that a typo fails at once,
-//! and so that the parser can be fuzzed on its own).
+//! The data specification (`--data` of `funcorr match`, `descriptors` and `bench`): which
+//! corresponding functions F on X and G on Y to use, parsed from a short string before any work
+//! is done (so that a typo fails at once, and so that the parser can be fuzzed on its own).
+//!
+//! One grammar for every command: most forms name functions of the two shapes alone
+//! ([`PairDataSpec::functions`]); two forms name the data of a benchmark data set (its
+//! segmentation of the pair, its ground-truth correspondence) and are resolved by
+//! [`crate::benchmark::pair_data`]. [`PairDataSpec::standalone`] rejects those two where no
+//! data set is given.
 
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
@@ -45,6 +51,17 @@ pub enum PairDataSpec {
     Landmarks(PathBuf),
     /// `matrix:F,G`: user matrices F (n × q) and G (m × q), `.npy`/`.csv`/`.txt`.
     Matrix(PathBuf, PathBuf),
+    /// `segments` (= `segments:sym`) or `segments:nonsym`, without files: one indicator per
+    /// segment of the benchmark data set's segmentation of the pair (the paper's scarce data);
+    /// `symmetric` selects its `.seg.sym` labels, else `.seg.nonsym`. Data sets only.
+    DatasetSegments {
+        /// Use the `.sym` label files.
+        symmetric: bool,
+    },
+    /// `landmarks:N` (N written in digits only; a file named by digits is written `./N`): delta
+    /// functions at N ground-truth landmarks of a benchmark data set (farthest-point samples of
+    /// X's template points and their counterparts on Y). Data sets only.
+    GroundTruthLandmarks(usize),
 }
 
 impl PairDataSpec {
@@ -59,11 +76,52 @@ impl PairDataSpec {
                 | PairDataSpec::Matrix(..)
         )
     }
+
+    /// Whether the spec names data of a benchmark data set (its segmentation or its ground
+    /// truth), which only [`crate::benchmark::pair_data`] can resolve.
+    pub fn needs_dataset(&self) -> bool {
+        matches!(self, PairDataSpec::DatasetSegments { .. } | PairDataSpec::GroundTruthLandmarks(_))
+    }
+
+    /// The spec if it can be computed from two shapes alone ([`PairDataSpec::functions`]); an
+    /// error naming `--data` for the data-set forms (`segments` without files, `landmarks:N`).
+    pub fn standalone(self) -> Result<Self> {
+        if !self.needs_dataset() {
+            return Ok(self);
+        }
+        let hint = match self {
+            PairDataSpec::DatasetSegments { .. } => "give the label files of both shapes, segments:A,B",
+            _ => "give a file of vertex pairs, landmarks:F (a file named by digits is written ./N)",
+        };
+        Err(Error::invalid(
+            "--data",
+            format!("'{self}' names the data of a benchmark data set (funcorr bench); {hint}"),
+        ))
+    }
+
+    /// The spec if it can be used on every pair of a data set; an error naming `--data` for the
+    /// forms that name files of one pair (`segments:A,B`, `rich:A,B`, `landmarks:F`,
+    /// `matrix:F,G`).
+    pub fn for_dataset(self) -> Result<Self> {
+        match self {
+            PairDataSpec::Segments(..)
+            | PairDataSpec::Rich(Some(_))
+            | PairDataSpec::Landmarks(_)
+            | PairDataSpec::Matrix(..) => Err(Error::invalid(
+                "--data",
+                format!(
+                    "'{self}' names files of one pair; a data set needs data for every pair: segments, \
+                     segments:nonsym, rich, landmarks:N, wks, wks:N, hks:N, wks+hks:N, persistence or mser"
+                ),
+            )),
+            s => Ok(s),
+        }
+    }
 }
 
 /// The forms a spec can take, for error messages.
 const FORMS: &str = "wks, wks:N, hks, hks:N, wks+hks, wks+hks:N, segments:A,B, persistence, mser, landmarks:F, rich, \
-                     rich:A,B, matrix:F,G";
+                     rich:A,B, matrix:F,G; in a data set also segments, segments:nonsym, landmarks:N";
 
 impl FromStr for PairDataSpec {
     type Err = Error;
@@ -105,11 +163,16 @@ impl FromStr for PairDataSpec {
             "wks" => Ok(PairDataSpec::Signatures { wks: true, hks: false, count: count()? }),
             "hks" => Ok(PairDataSpec::Signatures { wks: false, hks: true, count: count()? }),
             "wks+hks" => Ok(PairDataSpec::Signatures { wks: true, hks: true, count: count()? }),
+            "segments" if matches!(arg, None | Some("sym")) => Ok(PairDataSpec::DatasetSegments { symmetric: true }),
+            "segments" if arg == Some("nonsym") => Ok(PairDataSpec::DatasetSegments { symmetric: false }),
             "segments" => two_files().map(|(a, b)| PairDataSpec::Segments(a, b)),
             "persistence" => no_arg(PairDataSpec::Persistence),
             "rich" if arg.is_none() => Ok(PairDataSpec::Rich(None)),
             "rich" => Ok(PairDataSpec::Rich(Some(two_files()?))),
             "mser" => no_arg(PairDataSpec::Mser),
+            "landmarks" if arg.is_some_and(|a| !a.is_empty() && a.bytes().all(|b| b.is_ascii_digit())) => {
+                Ok(PairDataSpec::GroundTruthLandmarks(count()?))
+            }
             "landmarks" => Ok(PairDataSpec::Landmarks(file(arg.unwrap_or(""))?)),
             "matrix" => two_files().map(|(a, b)| PairDataSpec::Matrix(a, b)),
             _ => Err(bad(format!("unknown kind (expected one of {FORMS})"))),
@@ -137,6 +200,9 @@ impl std::fmt::Display for PairDataSpec {
             PairDataSpec::Mser => write!(f, "mser"),
             PairDataSpec::Landmarks(p) => write!(f, "landmarks:{}", p.display()),
             PairDataSpec::Matrix(a, b) => write!(f, "matrix:{},{}", a.display(), b.display()),
+            PairDataSpec::DatasetSegments { symmetric: true } => write!(f, "segments"),
+            PairDataSpec::DatasetSegments { symmetric: false } => write!(f, "segments:nonsym"),
+            PairDataSpec::GroundTruthLandmarks(n) => write!(f, "landmarks:{n}"),
         }
     }
 }
@@ -149,7 +215,7 @@ impl PairDataSpec {
     /// The corresponding functions F (n × q) on X and G (m × q) on Y this spec asks for, the
     /// same q columns in the same order on both shapes. `seg` configures the persistence
     /// segments of `persistence` and `rich`. Errors name the spec (parameter `--data`) or the
-    /// file at fault.
+    /// file at fault; the data-set forms ([`PairDataSpec::needs_dataset`]) are an error here.
     pub fn functions(
         &self,
         (x, lx, bx): Side,
@@ -217,6 +283,9 @@ impl PairDataSpec {
                 let g = Descriptors::from_matrix(&crate::io::read_matrix(b)?, y.n_vertices())?;
                 Ok((f, g))
             }
+            PairDataSpec::DatasetSegments { .. } | PairDataSpec::GroundTruthLandmarks(_) => {
+                Err(self.clone().standalone().expect_err("a data-set form"))
+            }
         }
     }
 }
@@ -239,6 +308,9 @@ mod tests {
             "mser",
             "landmarks:l.txt",
             "matrix:f.npy,g.npy",
+            "segments",
+            "segments:nonsym",
+            "landmarks:12",
         ] {
             let spec: PairDataSpec = text.parse().unwrap();
             assert_eq!(spec.to_string(), text);
@@ -254,6 +326,8 @@ mod tests {
         assert_eq!((f.q(), g.q(), f.n()), (10, 10, shape.n_vertices()));
         let (f, g) = "persistence".parse::<PairDataSpec>().unwrap().functions(side, side, &seg).unwrap();
         assert!(f.q() >= 1 && f.q() == g.q());
+        let e = "segments".parse::<PairDataSpec>().unwrap().functions(side, side, &seg).unwrap_err();
+        assert!(e.to_string().contains("segments:A,B"), "{e}");
         let e =
             "landmarks:/nonexistent/l.txt".parse::<PairDataSpec>().unwrap().functions(side, side, &seg).unwrap_err();
         assert!(e.to_string().contains("/nonexistent/l.txt"), "{e}");
@@ -273,6 +347,24 @@ mod tests {
         assert_eq!(p("landmarks:l.txt").unwrap(), P::Landmarks("l.txt".into()));
         assert_eq!(p("matrix:f.npy,g.npy").unwrap(), P::Matrix("f.npy".into(), "g.npy".into()));
         assert_eq!(p("persistence").unwrap(), P::Persistence);
+        assert_eq!(p("segments").unwrap(), P::DatasetSegments { symmetric: true });
+        assert_eq!(p("segments:sym").unwrap(), P::DatasetSegments { symmetric: true });
+        assert_eq!(p("segments:nonsym").unwrap(), P::DatasetSegments { symmetric: false });
+        assert_eq!(p("landmarks:12").unwrap(), P::GroundTruthLandmarks(12));
+        assert_eq!(p("landmarks:./12").unwrap(), P::Landmarks("./12".into()));
+        for s in ["segments", "landmarks:3"] {
+            assert!(p(s).unwrap().needs_dataset());
+            let e = p(s).unwrap().standalone().unwrap_err().to_string();
+            assert!(e.contains("--data") && e.contains("data set"), "{s}: {e}");
+        }
+        assert_eq!(p("wks").unwrap().standalone().unwrap(), P::WksRecipe);
+        for s in ["segments:a,b", "rich:a,b", "landmarks:l.txt", "landmarks:-3", "matrix:f,g"] {
+            let e = p(s).unwrap().for_dataset().unwrap_err().to_string();
+            assert!(e.contains("--data") && e.contains("one pair"), "{s}: {e}");
+        }
+        for s in ["segments", "rich", "landmarks:3", "wks", "persistence"] {
+            assert_eq!(p(s).unwrap().for_dataset().unwrap(), p(s).unwrap());
+        }
         assert!(p("wks").unwrap().is_rich() && !p("persistence").unwrap().is_rich());
         for (s, needle) in [
             ("wks:0", "1..=100000"),
@@ -282,6 +374,8 @@ mod tests {
             ("segments:a", "two files"),
             ("segments:,b", "file name"),
             ("landmarks:", "file name"),
+            ("landmarks:0", "1..=100000"),
+            ("landmarks:100001", "1..=100000"),
             ("mser:x", "no argument"),
             ("sift", "unknown kind"),
             ("", "unknown kind"),
