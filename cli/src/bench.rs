@@ -12,11 +12,10 @@ use std::time::Instant;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use funcorr::benchmark::{self, BenchMethod, BenchOptions, Dataset, Report};
-use funcorr::completion::{CompletionOptions, Form};
+use funcorr::completion::Form;
 use funcorr::descriptors::spec::PairDataSpec;
-use funcorr::experiments::Sterile;
+use funcorr::experiments::{run_sweep, Sterile, Sweep, SweepRow, SweepSettings};
 use funcorr::io::staged::StagedDir;
-use funcorr::viz::plot::{LinePlot, Series};
 use funcorr::{Error, Result};
 
 use super::{pipeline_options, CacheArgs, GeodesicsChoice, MethodChoice, PipelineArgs, ScalingChoice};
@@ -150,6 +149,14 @@ fn select_pairs(ds: &Dataset, file: Option<&Path>, limit: Option<usize>) -> Resu
 }
 
 /// Publishes a staged output directory (see `funcorr::io::staged`) and lists the files written.
+/// The run's tables, JSON and maps ([`Report::write`]) and its curves
+/// ([`funcorr::viz::plot::write_benchmark_curves`]) in `dir`; the paths written.
+fn write_report(report: &Report, dir: &Path, title: &str) -> Result<Vec<PathBuf>> {
+    let mut written = report.write(dir, title)?;
+    written.extend(funcorr::viz::plot::write_benchmark_curves(report, dir, title)?);
+    Ok(written)
+}
+
 fn publish(staged: StagedDir, paths: &[PathBuf]) -> Result<()> {
     let finals: Vec<PathBuf> = paths.iter().map(|p| staged.published_path(p)).collect();
     staged.publish()?;
@@ -186,7 +193,7 @@ pub(crate) fn bench(args: &BenchArgs) -> Result<()> {
         )
     });
     let staged = StagedDir::create(&args.output)?;
-    let written = report.write(staged.path(), &title).map_err(|e| staged.attribute(e))?;
+    let written = write_report(&report, staged.path(), &title).map_err(|e| staged.attribute(e))?;
     outln!("{title} (hard error, {} geodesics; {:.1} s)\n", report.geodesics.name(), report.wall_seconds);
     outln!("{}", report.table());
     for r in report.runs.iter().filter(|r| r.outcome.is_err()) {
@@ -330,46 +337,34 @@ pub(crate) struct ReproBenchArgs {
 
 pub(crate) fn reproduce(what: &ReproduceWhat) -> Result<()> {
     match what {
-        ReproduceWhat::Rank(a) => sweep(&a.common, Sweep::Rank { ks: &a.ks, mu3: a.mu3 }),
-        ReproduceWhat::L1(a) => sweep(&a.common, Sweep::L1 { mu3s: &a.mu3s, k: a.k }),
+        ReproduceWhat::Rank(a) => sweep(&a.common, Sweep::Rank { ks: a.ks.clone(), mu3: a.mu3 }),
+        ReproduceWhat::L1(a) => sweep(&a.common, Sweep::L1 { mu3s: a.mu3s.clone(), k: a.k }),
         ReproduceWhat::Benchmark(a) => figure7(a),
     }
 }
 
-enum Sweep<'a> {
-    Rank { ks: &'a [usize], mu3: f64 },
-    L1 { mu3s: &'a [f64], k: usize },
-}
-
-/// One point of a sweep.
-#[derive(serde::Serialize)]
-struct SweepRow {
-    method: String,
-    parameter: f64,
-    k: usize,
-    mu3: Option<f64>,
-    mean_soft_error: f64,
-    seconds: f64,
-    iterations: Option<u64>,
-    /// Pokrass et al.: fraction of data columns the permutation matched correctly.
-    permutation_correct: Option<f64>,
-}
-
-fn completion_options(a: &SterileArgs, k: usize, mu1: f64, mu3: f64) -> Result<CompletionOptions> {
-    let mut o = CompletionOptions::paper(false, a.scaling.into());
-    (o.form, o.k_prime, o.k) = (Form::Subspace, a.kprime, k);
-    let p = &mut o.params;
-    p.mu1 = a.mu1.unwrap_or(mu1);
-    p.mu2 = a.mu2.unwrap_or(mu1);
-    (p.mu3, p.mu4, p.xi, p.mu_comm) = (mu3, 0.0, a.xi, a.completion_commutativity);
-    o.optimize.max_iterations = a.max_iterations;
-    p.validate()?;
-    Ok(o)
+impl SterileArgs {
+    fn settings(&self) -> SweepSettings {
+        SweepSettings {
+            kprime: self.kprime,
+            scaling: self.scaling.into(),
+            mu1: self.mu1,
+            mu2: self.mu2,
+            xi: self.xi,
+            completion_commutativity: self.completion_commutativity,
+            max_iterations: self.max_iterations,
+            init_k: self.init_k,
+            pokrass_mu: self.pokrass_mu,
+        }
+    }
 }
 
 fn sweep(a: &SterileArgs, what: Sweep) -> Result<()> {
     let (xname, yname) =
         a.pair.split_once(',').ok_or_else(|| Error::invalid("--pair", format!("{:?}: expected X,Y", a.pair)))?;
+    let settings = a.settings();
+    // Check the sweep before the (slow) setup.
+    funcorr::experiments::sweep::sweep_jobs(&what, a.kprime).map_err(|e| flag_error(e, &what))?;
     let ds = Dataset::open(&a.dataset)?;
     let prepare = |name: &str| {
         let t = Instant::now();
@@ -391,90 +386,49 @@ fn sweep(a: &SterileArgs, what: Sweep) -> Result<()> {
             t.elapsed().as_secs_f64()
         );
     }
-    // (method, k, μ3) for every point of the sweep.
-    let mut jobs: Vec<(&str, usize, f64)> = Vec::new();
-    let (name, mu1) = match what {
-        Sweep::Rank { ks, mu3 } => {
-            for &k in ks {
-                if k == 0 || k > a.kprime {
-                    return Err(Error::invalid("--ks", format!("rank {k} must be in 1..={}", a.kprime)));
-                }
-                jobs.extend([
-                    ("ground-truth", k, 0.0),
-                    ("ovsjanikov", k, 0.0),
-                    ("pokrass", k, 0.0),
-                    ("completion", k, mu3),
-                ]);
-            }
-            ("rank", 1e-8)
-        }
-        Sweep::L1 { mu3s, k } => {
-            if k == 0 || k > a.kprime {
-                return Err(Error::invalid("-k", format!("rank {k} must be in 1..={}", a.kprime)));
-            }
-            jobs.extend([("ground-truth", k, 0.0), ("ovsjanikov", k, 0.0), ("pokrass", k, 0.0)]);
-            for &m in mu3s {
-                if !(m.is_finite() && m >= 0.0) {
-                    return Err(Error::invalid("--mu3s", format!("{m}: must be finite and ≥ 0")));
-                }
-                jobs.push(("completion", k, m));
-            }
-            ("l1", 1e-4)
-        }
-    };
     let staged = StagedDir::create(&a.output)?;
-    let mut rows: Vec<SweepRow> = Vec::new();
-    for (method, k, mu3) in jobs {
-        let t = Instant::now();
-        let (mut iterations, mut permutation_correct) = (None, None);
-        let c = match method {
-            "ground-truth" => setup.ground_truth(k)?,
-            "ovsjanikov" => setup.ovsjanikov(k)?,
-            "pokrass" => {
-                let (c, right) =
-                    setup.pokrass(k, &funcorr::fmap::PokrassOptions { mu: a.pokrass_mu, ..Default::default() })?;
-                permutation_correct = Some(right);
-                c
-            }
-            _ => {
-                let (c, report) = setup.completion(&completion_options(a, k, mu1, mu3)?, a.init_k.min(a.q))?;
-                iterations = report.get("iterations").and_then(|v| v.as_u64());
-                c
-            }
-        };
-        let seconds = t.elapsed().as_secs_f64();
-        let e = setup.mean_soft_error(c.as_ref())?;
-        let parameter = if name == "rank" { k as f64 } else { mu3 };
+    let mut progress = |r: &SweepRow| {
         if !a.quiet {
             let extra =
-                permutation_correct.map(|p| format!(", permutation {:.0}% right", 100.0 * p)).unwrap_or_default();
+                r.permutation_correct.map(|p| format!(", permutation {:.0}% right", 100.0 * p)).unwrap_or_default();
             eprintln!(
-                "funcorr: {method:<12} k {k:>4} μ3 {mu3:<8.1e} soft error ×100 {:>7.3}  ({seconds:.1} s{extra})",
-                100.0 * e
+                "funcorr: {:<12} k {:>4} μ3 {:<8.1e} soft error ×100 {:>7.3}  ({:.1} s{extra})",
+                r.method.as_str(),
+                r.k,
+                r.mu3.unwrap_or(0.0),
+                100.0 * r.mean_soft_error,
+                r.seconds
             );
         }
-        let mu3 = (method == "completion").then_some(mu3);
-        rows.push(SweepRow {
-            method: method.into(),
-            parameter,
-            k,
-            mu3,
-            mean_soft_error: e,
-            seconds,
-            iterations,
-            permutation_correct,
-        });
-    }
-    write_sweep(a, staged, name, &rows)
+    };
+    let rows = run_sweep(&setup, &what, &settings, &mut progress)?;
+    write_sweep(a, staged, &what, &rows)
 }
 
-fn write_sweep(a: &SterileArgs, staged: StagedDir, name: &str, rows: &[SweepRow]) -> Result<()> {
-    let written = write_sweep_into(a, &staged, name, rows).map_err(|e| staged.attribute(e))?;
+/// A library error about the sweep's parameters, named by its flag.
+fn flag_error(e: Error, what: &Sweep) -> Error {
+    match e {
+        Error::Invalid { what: parameter, msg } => {
+            let flag = match (parameter.as_str(), what) {
+                ("ks", _) => "--ks",
+                ("mu3s", _) => "--mu3s",
+                ("k", Sweep::L1 { .. }) => "-k",
+                _ => return Error::Invalid { what: parameter, msg },
+            };
+            Error::invalid(flag, msg)
+        }
+        e => e,
+    }
+}
+
+fn write_sweep(a: &SterileArgs, staged: StagedDir, what: &Sweep, rows: &[SweepRow]) -> Result<()> {
+    let written = write_sweep_into(a, &staged, what, rows).map_err(|e| staged.attribute(e))?;
     publish(staged, &written)
 }
 
 /// The sweep's table, JSON and plot, written into the staging directory; the paths written.
-fn write_sweep_into(a: &SterileArgs, staged: &StagedDir, name: &str, rows: &[SweepRow]) -> Result<Vec<PathBuf>> {
+fn write_sweep_into(a: &SterileArgs, staged: &StagedDir, what: &Sweep, rows: &[SweepRow]) -> Result<Vec<PathBuf>> {
+    let name = what.name();
     let write = |file: String, text: String| -> Result<PathBuf> {
         let p = staged.join(file);
         funcorr::io::write_atomic(&p, text)?;
@@ -492,77 +446,40 @@ fn write_sweep_into(a: &SterileArgs, staged: &StagedDir, name: &str, rows: &[Swe
             r.iterations.map(|i| i.to_string()).unwrap_or_default()
         );
     }
-    let settings = serde_json::json!({
-        "dataset": a.dataset, "pair": a.pair, "q": a.q, "kprime": a.kprime, "samples": a.samples,
-        "scaling": match a.scaling { ScalingChoice::Paper => "paper", ScalingChoice::Unit => "unit" },
-        "mu1": a.mu1, "mu2": a.mu2, "xi": a.xi, "completion_commutativity": a.completion_commutativity,
-        "max_iterations": a.max_iterations, "init_k": a.init_k, "pokrass_mu": a.pokrass_mu,
-    });
-    let mut written = vec![
-        write(format!("{name}.csv"), csv)?,
-        write(
-            format!("{name}.json"),
-            serde_json::to_string_pretty(&serde_json::json!({"settings": settings, "rows": rows})).expect("JSON"),
-        )?,
-    ];
-    // The plot: one line per method; μ3 on a log10 axis with 0 drawn one decade left of the
-    // smallest positive value; the baselines (independent of μ3) as flat lines.
-    let min_pos = rows.iter().filter_map(|r| r.mu3).filter(|&m| m > 0.0).fold(f64::INFINITY, f64::min);
-    let floor = if min_pos.is_finite() { min_pos.log10() - 1.0 } else { -1.0 };
-    let x_of = |r: &SweepRow| -> f64 {
-        if name == "rank" {
-            return r.parameter;
-        }
-        r.mu3.map(|m| if m > 0.0 { m.log10() } else { floor }).unwrap_or(f64::NAN)
+    #[derive(serde::Serialize)]
+    struct Settings<'a> {
+        dataset: &'a Path,
+        pair: &'a str,
+        q: usize,
+        samples: usize,
+        #[serde(flatten)]
+        sweep: SweepSettings,
+    }
+    #[derive(serde::Serialize)]
+    struct SweepFile<'a> {
+        settings: Settings<'a>,
+        rows: &'a [SweepRow],
+    }
+    let file = SweepFile {
+        settings: Settings { dataset: &a.dataset, pair: &a.pair, q: a.q, samples: a.samples, sweep: a.settings() },
+        rows,
     };
-    let xs: Vec<f64> = rows.iter().map(x_of).filter(|v| v.is_finite()).collect();
-    let (lo, hi) = xs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
-    let series = ["ovsjanikov", "pokrass", "completion", "ground-truth"]
-        .iter()
-        .enumerate()
-        .filter_map(|(i, m)| {
-            let mine: Vec<&SweepRow> = rows.iter().filter(|r| r.method == *m).collect();
-            let mut points: Vec<(f64, f64)> = if name == "l1" && *m != "completion" {
-                mine.first().map(|r| vec![(lo, 100.0 * r.mean_soft_error), (hi, 100.0 * r.mean_soft_error)])?
-            } else {
-                mine.iter().map(|r| (x_of(r), 100.0 * r.mean_soft_error)).collect()
-            };
-            points.sort_by(|p, q| p.0.total_cmp(&q.0));
-            let label = match *m {
-                "ovsjanikov" => "Ovsjanikov et al. (5)",
-                "pokrass" => "Pokrass et al. (6)",
-                "ground-truth" => "ground-truth C0 (reference)",
-                _ => "matrix completion (11)",
-            };
-            (!points.is_empty()).then(|| Series {
-                label: label.into(),
-                points,
-                dashed: name == "l1" && *m != "completion",
-                color: if *m == "ground-truth" { 7 } else { i },
-                markers: name == "rank" || *m == "completion",
-            })
-        })
-        .collect();
-    let plot = LinePlot {
-        title: if name == "rank" {
-            format!("Figure 5: soft error vs rank k ({}, q = {})", a.pair.replace(',', " → "), a.q)
-        } else {
-            let k = rows.first().map(|r| r.k).unwrap_or(0);
-            format!("Figure 6: soft error vs μ3 ({}, q = {}, k = {k})", a.pair.replace(',', " → "), a.q)
-        },
-        x_label: if name == "rank" { "rank k".into() } else { "log10 μ3 (leftmost: μ3 = 0)".into() },
-        y_label: "mean soft error ×100".into(),
-        x_range: None,
-        y_range: None,
-        series,
-    };
+    let mut written =
+        vec![write(format!("{name}.csv"), csv)?, write(format!("{name}.json"), funcorr::io::to_json_sorted(&file)?)?];
     let png = staged.join(format!("{name}.png"));
-    plot.write_png(&png, 900, 600)?;
+    funcorr::viz::plot::sweep_plot(what, rows, &a.pair.replace(',', " → "), a.q).write_png(&png, 900, 600)?;
     written.push(png);
     outln!("{:<12} {:>5} {:>9} {:>16} {:>9}", "method", "k", "μ3", "soft error ×100", "seconds");
     for r in rows {
         let mu3 = r.mu3.map(|m| format!("{m:.0e}")).unwrap_or_else(|| "–".into());
-        outln!("{:<12} {:>5} {:>9} {:>16.3} {:>9.1}", r.method, r.k, mu3, 100.0 * r.mean_soft_error, r.seconds);
+        outln!(
+            "{:<12} {:>5} {:>9} {:>16.3} {:>9.1}",
+            r.method.as_str(),
+            r.k,
+            mu3,
+            100.0 * r.mean_soft_error,
+            r.seconds
+        );
     }
     Ok(written)
 }
@@ -602,25 +519,15 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
             )
         })?;
         let title = format!("{setting} data ({data}), {} pairs", pairs.len());
-        written.extend(report.write(&staged.join(setting), &title).map_err(|e| staged.attribute(e))?);
+        written.extend(write_report(&report, &staged.join(setting), &title).map_err(|e| staged.attribute(e))?);
         table += &format!("## {title}\n\n{}\n", report.table());
-        for m in report.summaries().into_iter().filter(|m| m.pairs > 0) {
-            all.push((m, setting));
-        }
+        all.push((setting, setting == "scarce", report.summaries()));
     }
-    let curves: Vec<(String, Vec<f64>, bool, usize)> = all
-        .iter()
-        .enumerate()
-        .map(|(i, (m, setting))| {
-            let color = benchmark::method_color(&m.method, i);
-            (format!("{} ({setting})", m.method), m.curve.clone(), *setting == "scarce", color)
-        })
-        .collect();
     let title = format!("Figure 7: {} pairs of {}, symmetric, ICP", pairs.len(), a.dataset.display());
     let png = staged.join("benchmark.png");
-    funcorr::viz::plot::cumulative_curves(&title, &funcorr::eval::standard_thresholds(), &curves)
-        .write_png(&png, 900, 640)
-        .map_err(|e| staged.attribute(e))?;
+    let settings: Vec<(&str, bool, &[benchmark::MethodSummary])> =
+        all.iter().map(|(s, dashed, m)| (*s, *dashed, m.as_slice())).collect();
+    funcorr::viz::plot::figure7_curves(&title, &settings).write_png(&png, 900, 640).map_err(|e| staged.attribute(e))?;
     let md = staged.join("benchmark.md");
     funcorr::io::write_atomic(&md, format!("# {title}\n\n{table}")).map_err(|e| staged.attribute(e))?;
     written.extend([png, md]);

@@ -1,19 +1,8 @@
-//! Per-method summaries pooled over the pairs, their table, cumulative curves and files.
+//! Per-method summaries pooled over the pairs, their table, the typed records of the JSON files
+//! and the files of a run (the curves are drawn by `viz::plot::benchmark_curves`).
 
 #[allow(unused_imports)]
 use super::*;
-
-/// The plot colour of a method: fixed for the four methods of funcorr (so that every plot draws
-/// `fmap` in the same colour), else by position.
-pub fn method_color(name: &str, position: usize) -> usize {
-    match name {
-        "fmap" => 0,
-        "pokrass" => 1,
-        "coupled" => 2,
-        "completion" => 3,
-        _ => 4 + position,
-    }
-}
 
 /// Per-method results pooled over the pairs of a run.
 #[derive(Debug, Clone, Serialize)]
@@ -33,6 +22,98 @@ pub struct MethodSummary {
     pub curve: Vec<f64>,
     /// Mean seconds per scored pair (method stages, see [`PairScore::seconds`]).
     pub seconds_per_pair: f64,
+}
+
+/// One row of `pairs.json`: a method on a pair, its score or why it failed.
+#[derive(Debug, Clone, Serialize)]
+pub struct PairRecord<'a> {
+    /// Source shape X.
+    pub source: &'a str,
+    /// Target shape Y.
+    pub target: &'a str,
+    /// Method name.
+    pub method: &'a str,
+    /// `ok` or `failed`.
+    pub status: &'static str,
+    /// Number q of data functions (scored pairs).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub q: Option<usize>,
+    /// Template points scored.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub points: Option<usize>,
+    /// Mean and fractions of the hard errors.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub summary: Option<Summary>,
+    /// Cumulative curve at [`eval::standard_thresholds`].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub curve: Option<&'a [f64]>,
+    /// Seconds of the method's stages.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub seconds: Option<f64>,
+    /// (stage, seconds) in order.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stages: Option<&'a [(String, f64)]>,
+    /// Why the method failed on the pair.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<&'a str>,
+}
+
+impl<'a> PairRecord<'a> {
+    /// The record of `run`.
+    pub fn of(run: &'a PairRun) -> Self {
+        let (source, target, method) = (run.source.as_str(), run.target.as_str(), run.method.as_str());
+        match &run.outcome {
+            Ok(s) => PairRecord {
+                source,
+                target,
+                method,
+                status: "ok",
+                q: Some(s.q),
+                points: Some(s.points),
+                summary: Some(s.summary),
+                curve: Some(&s.curve),
+                seconds: Some(s.seconds),
+                stages: Some(&s.stages),
+                error: None,
+            },
+            Err(msg) => PairRecord {
+                source,
+                target,
+                method,
+                status: "failed",
+                q: None,
+                points: None,
+                summary: None,
+                curve: None,
+                seconds: None,
+                stages: None,
+                error: Some(msg),
+            },
+        }
+    }
+}
+
+/// `summary.json`: the settings of a run and its per-method summaries.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunSummary<'a> {
+    /// Title of the table and the plot.
+    pub title: &'a str,
+    /// The data spec, as written on the command line.
+    pub data: String,
+    /// Whether symmetric flips were allowed.
+    pub symmetric: bool,
+    /// The geodesic solver's name.
+    pub geodesics: &'static str,
+    /// Eigenpairs per shape.
+    pub k: usize,
+    /// Wall-clock seconds of the whole run.
+    pub wall_seconds: f64,
+    /// Seconds to prepare each shape.
+    pub shape_seconds: &'a BTreeMap<String, f64>,
+    /// The thresholds of the curves ([`eval::standard_thresholds`]).
+    pub thresholds: Vec<f64>,
+    /// Per-method summaries, in method order.
+    pub methods: Vec<MethodSummary>,
 }
 
 /// A benchmark run: all pair runs and the shapes' preparation times.
@@ -88,15 +169,11 @@ impl Report {
         table_of(&self.summaries())
     }
 
-    /// The plot of the pooled cumulative curves, one line per method (dashed for scarce data).
-    pub fn plot(&self, title: &str) -> crate::viz::plot::LinePlot {
-        plot_of(&self.data, &self.summaries(), title)
-    }
-
     /// Writes the run to `out` (created): `pairs.csv` (one row per pair and method),
     /// `pairs.json` (the same with curves and stage times), `maps/X__Y.METHOD.txt` (0-based
-    /// maps X → Y, readable by `funcorr eval`), `summary.csv`, `summary.md`, `summary.json` and
-    /// `curves.png` (one line per method). Returns the paths written.
+    /// maps X → Y, readable by `funcorr eval`), `summary.csv`, `summary.md` and `summary.json`
+    /// (the plot of the curves is `viz::plot::write_benchmark_curves`). Returns the paths
+    /// written.
     pub fn write(&self, out: &Path, title: &str) -> Result<Vec<PathBuf>> {
         let maps = out.join("maps");
         std::fs::create_dir_all(&maps).map_err(|e| Error::io(&maps, e))?;
@@ -107,7 +184,6 @@ impl Report {
         };
         let mut written = Vec::new();
         let mut csv = String::from("source,target,method,status,q,points,mean_x100,le_0.05,le_0.10,le_0.25,seconds\n");
-        let mut json_pairs = Vec::new();
         for r in &self.runs {
             match &r.outcome {
                 Ok(s) => {
@@ -127,22 +203,15 @@ impl Report {
                     let map: String = s.map_xy.iter().map(|j| format!("{j}\n")).collect();
                     let p = maps.join(format!("{}__{}.{}.txt", r.source, r.target, r.method));
                     crate::io::write_atomic(&p, map)?;
-                    json_pairs.push(serde_json::json!({
-                        "source": r.source, "target": r.target, "method": r.method, "status": "ok",
-                        "q": s.q, "points": s.points, "summary": s.summary, "curve": s.curve,
-                        "seconds": s.seconds, "stages": s.stages,
-                    }));
                 }
-                Err(msg) => {
+                Err(_) => {
                     csv += &format!("{},{},{},failed,,,,,,,\n", r.source, r.target, r.method);
-                    json_pairs.push(serde_json::json!({
-                        "source": r.source, "target": r.target, "method": r.method, "status": "failed", "error": msg,
-                    }));
                 }
             }
         }
         written.push(write("pairs.csv", csv)?);
-        written.push(write("pairs.json", serde_json::to_string_pretty(&json_pairs).expect("plain JSON"))?);
+        let records: Vec<PairRecord> = self.runs.iter().map(PairRecord::of).collect();
+        written.push(write("pairs.json", crate::io::to_json_sorted(&records)?)?);
         let summaries = self.summaries();
         let mut csv = String::from("method,pairs,failed,points,mean_x100,le_0.05,le_0.10,le_0.25,seconds_per_pair\n");
         for m in &summaries {
@@ -161,17 +230,18 @@ impl Report {
         }
         written.push(write("summary.csv", csv)?);
         written.push(write("summary.md", format!("# {title}\n\n{}", table_of(&summaries)))?);
-        let json = serde_json::json!({
-            "title": title, "data": self.data.to_string(), "symmetric": self.symmetric,
-            "geodesics": self.geodesics.name(), "k": self.k, "wall_seconds": self.wall_seconds,
-            "shape_seconds": self.shape_seconds, "thresholds": eval::standard_thresholds(), "methods": summaries,
-        });
-        written.push(write("summary.json", serde_json::to_string_pretty(&json).expect("plain JSON"))?);
-        if summaries.iter().any(|m| m.pairs > 0) {
-            let p = out.join("curves.png");
-            plot_of(&self.data, &summaries, title).write_png(&p, 900, 640)?;
-            written.push(p);
-        }
+        let json = RunSummary {
+            title,
+            data: self.data.to_string(),
+            symmetric: self.symmetric,
+            geodesics: self.geodesics.name(),
+            k: self.k,
+            wall_seconds: self.wall_seconds,
+            shape_seconds: &self.shape_seconds,
+            thresholds: eval::standard_thresholds(),
+            methods: summaries,
+        };
+        written.push(write("summary.json", crate::io::to_json_sorted(&json)?)?);
         Ok(written)
     }
 }
@@ -199,16 +269,4 @@ pub(crate) fn table_of(summaries: &[MethodSummary]) -> String {
         );
     }
     s
-}
-
-/// The plot of [`Report::plot`] from per-method summaries.
-pub(crate) fn plot_of(data: &PairDataSpec, summaries: &[MethodSummary], title: &str) -> crate::viz::plot::LinePlot {
-    let dashed = !data.is_rich();
-    let curves: Vec<(String, Vec<f64>, bool, usize)> = summaries
-        .iter()
-        .enumerate()
-        .filter(|(_, m)| m.pairs > 0)
-        .map(|(i, m)| (m.method.clone(), m.curve.clone(), dashed, method_color(&m.method, i)))
-        .collect();
-    crate::viz::plot::cumulative_curves(title, &eval::standard_thresholds(), &curves)
 }

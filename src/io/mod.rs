@@ -116,6 +116,15 @@ fn unknown_extension(path: &Path, ext: &str, expected: &str) -> Error {
     Error::invalid("path", format!("{}: unsupported extension '{ext}' (expected {expected})", path.display()))
 }
 
+/// `value` as pretty-printed JSON (two-space indent) with the keys of every object in sorted
+/// order: the form of every JSON file funcorr writes, so that a file's bytes do not depend on the
+/// order in which a struct declares its fields. Errors ([`Error::Invalid`] naming `json`) only
+/// for values JSON cannot hold (maps with non-string keys).
+pub fn to_json_sorted<T: serde::Serialize + ?Sized>(value: &T) -> Result<String> {
+    let v = serde_json::to_value(value).map_err(|e| Error::invalid("json", e.to_string()))?;
+    serde_json::to_string_pretty(&v).map_err(|e| Error::invalid("json", e.to_string()))
+}
+
 /// Writes `contents` to `path` whole or not at all: a reader sees the old file or the complete
 /// new one, never a part (a temporary file beside it, synced, then renamed; see `write_file`).
 /// Every output file of the library and the CLI goes through this or `write_file`.
@@ -308,6 +317,18 @@ pub(crate) mod test_util {
 mod tests {
     use super::test_util::{assert_parse, tmp_dir};
     use super::*;
+
+    #[test]
+    fn json_files_list_keys_in_sorted_order() {
+        #[derive(serde::Serialize)]
+        struct Row {
+            zeta: u32,
+            alpha: Option<f64>,
+            inner: std::collections::HashMap<&'static str, u8>,
+        }
+        let text = to_json_sorted(&Row { zeta: 1, alpha: None, inner: [("b", 2), ("a", 1)].into() }).unwrap();
+        assert_eq!(text, "{\n  \"alpha\": null,\n  \"inner\": {\n    \"a\": 1,\n    \"b\": 2\n  },\n  \"zeta\": 1\n}");
+    }
 
     fn tetra(colors: bool) -> MeshData {
         MeshData {

@@ -2,14 +2,21 @@
 //! Figure 7) and error-vs-parameter curves (Figures 5 and 6). Drawn with `plotters` into an RGB
 //! buffer and written with [`super::write_png`]; the text uses the bundled DejaVu Sans font
 //! (`assets/fonts`, see its licence there), so no system font library is needed.
+//!
+//! The figures of the paper are drawn here from the typed rows of the layers below: a benchmark
+//! run's per-method summaries ([`benchmark_curves`], [`figure7_curves`]) and the sweep rows of
+//! the sterile experiments ([`sweep_plot`]).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Once;
 
 use plotters::prelude::*;
 
 use super::Image;
+use crate::benchmark::{MethodSummary, Report};
 use crate::error::{Error, Result};
+use crate::eval::standard_thresholds;
+use crate::experiments::{Sweep, SweepMethod, SweepRow};
 
 /// One line of a [`LinePlot`].
 #[derive(Debug, Clone, PartialEq)]
@@ -203,6 +210,122 @@ pub fn cumulative_curves(title: &str, thresholds: &[f64], curves: &[(String, Vec
     }
 }
 
+/// The plot colour of a method: fixed for the four methods of funcorr (so that every plot draws
+/// `fmap` in the same colour), else by position.
+pub fn method_color(name: &str, position: usize) -> usize {
+    match name {
+        "fmap" => 0,
+        "pokrass" => 1,
+        "coupled" => 2,
+        "completion" => 3,
+        _ => 4 + position,
+    }
+}
+
+/// The pooled cumulative curves of a benchmark run, one line per method that scored a pair,
+/// coloured by [`method_color`]; dashed for scarce data (as the paper's Figure 7).
+pub fn benchmark_curves(report: &Report, title: &str) -> LinePlot {
+    summary_curves(&report.summaries(), !report.data.is_rich(), title)
+}
+
+fn summary_curves(summaries: &[MethodSummary], dashed: bool, title: &str) -> LinePlot {
+    let curves: Vec<(String, Vec<f64>, bool, usize)> = summaries
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.pairs > 0)
+        .map(|(i, m)| (m.method.clone(), m.curve.clone(), dashed, method_color(&m.method, i)))
+        .collect();
+    cumulative_curves(title, &standard_thresholds(), &curves)
+}
+
+/// Writes `curves.png` (900 × 640, [`benchmark_curves`]) into `dir` when a method scored a
+/// pair; the path written, or None.
+pub fn write_benchmark_curves(report: &Report, dir: &Path, title: &str) -> Result<Option<PathBuf>> {
+    let summaries = report.summaries();
+    if !summaries.iter().any(|m| m.pairs > 0) {
+        return Ok(None);
+    }
+    let p = dir.join("curves.png");
+    summary_curves(&summaries, !report.data.is_rich(), title).write_png(&p, 900, 640)?;
+    Ok(Some(p))
+}
+
+/// The paper's Figure 7: the curves of several settings on one plot, labelled "method
+/// (setting)", dashed where the setting's flag says so (scarce data); methods without a scored
+/// pair are left out.
+pub fn figure7_curves(title: &str, settings: &[(&str, bool, &[MethodSummary])]) -> LinePlot {
+    let curves: Vec<(String, Vec<f64>, bool, usize)> = settings
+        .iter()
+        .flat_map(|&(setting, dashed, summaries)| {
+            summaries.iter().filter(|m| m.pairs > 0).map(move |m| (m, setting, dashed))
+        })
+        .enumerate()
+        .map(|(i, (m, setting, dashed))| {
+            (format!("{} ({setting})", m.method), m.curve.clone(), dashed, method_color(&m.method, i))
+        })
+        .collect();
+    cumulative_curves(title, &standard_thresholds(), &curves)
+}
+
+/// The paper's Figure 5 (soft error vs rank k) or Figure 6 (soft error vs μ3, on a log10 axis
+/// with μ3 = 0 drawn one decade left of the smallest positive value; the baselines, which do
+/// not depend on μ3, as flat dashed lines) from the rows of a sweep; `pair` and `q` go into the
+/// title. y: mean soft error ×100.
+pub fn sweep_plot(sweep: &Sweep, rows: &[SweepRow], pair: &str, q: usize) -> LinePlot {
+    let rank = matches!(sweep, Sweep::Rank { .. });
+    let min_pos = rows.iter().filter_map(|r| r.mu3).filter(|&m| m > 0.0).fold(f64::INFINITY, f64::min);
+    let floor = if min_pos.is_finite() { min_pos.log10() - 1.0 } else { -1.0 };
+    let x_of = |r: &SweepRow| -> f64 {
+        if rank {
+            return r.parameter;
+        }
+        r.mu3.map(|m| if m > 0.0 { m.log10() } else { floor }).unwrap_or(f64::NAN)
+    };
+    let xs: Vec<f64> = rows.iter().map(x_of).filter(|v| v.is_finite()).collect();
+    let (lo, hi) = xs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
+    use SweepMethod as M;
+    let series = [M::Ovsjanikov, M::Pokrass, M::Completion, M::GroundTruth]
+        .iter()
+        .enumerate()
+        .filter_map(|(i, &m)| {
+            let mine: Vec<&SweepRow> = rows.iter().filter(|r| r.method == m).collect();
+            let mut points: Vec<(f64, f64)> = if !rank && m != M::Completion {
+                mine.first().map(|r| vec![(lo, 100.0 * r.mean_soft_error), (hi, 100.0 * r.mean_soft_error)])?
+            } else {
+                mine.iter().map(|r| (x_of(r), 100.0 * r.mean_soft_error)).collect()
+            };
+            points.sort_by(|p, q| p.0.total_cmp(&q.0));
+            let label = match m {
+                M::Ovsjanikov => "Ovsjanikov et al. (5)",
+                M::Pokrass => "Pokrass et al. (6)",
+                M::GroundTruth => "ground-truth C0 (reference)",
+                M::Completion => "matrix completion (11)",
+            };
+            (!points.is_empty()).then(|| Series {
+                label: label.into(),
+                points,
+                dashed: !rank && m != M::Completion,
+                color: if m == M::GroundTruth { 7 } else { i },
+                markers: rank || m == M::Completion,
+            })
+        })
+        .collect();
+    LinePlot {
+        title: match sweep {
+            Sweep::Rank { .. } => format!("Figure 5: soft error vs rank k ({pair}, q = {q})"),
+            Sweep::L1 { .. } => {
+                let k = rows.first().map(|r| r.k).unwrap_or(0);
+                format!("Figure 6: soft error vs μ3 ({pair}, q = {q}, k = {k})")
+            }
+        },
+        x_label: if rank { "rank k".into() } else { "log10 μ3 (leftmost: μ3 = 0)".into() },
+        y_label: "mean soft error ×100".into(),
+        x_range: None,
+        y_range: None,
+        series,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -235,6 +358,49 @@ mod tests {
         assert!(plot.draw(10, 480).is_err());
         let bad = LinePlot { x_range: Some((1.0, 1.0)), ..plot };
         assert!(bad.draw(640, 480).is_err());
+    }
+
+    #[test]
+    fn figures_are_drawn_from_typed_rows() {
+        use crate::experiments::SweepMethod as M;
+        let row = |method, k: usize, mu3: Option<f64>, e: f64| SweepRow {
+            method,
+            parameter: mu3.unwrap_or(k as f64),
+            k,
+            mu3,
+            mean_soft_error: e,
+            seconds: 0.0,
+            iterations: None,
+            permutation_correct: None,
+        };
+        // Figure 6: the baselines flat over the μ3 range, μ3 = 0 one decade left of 1e-3.
+        let rows = [
+            row(M::GroundTruth, 45, None, 0.01),
+            row(M::Ovsjanikov, 45, None, 0.05),
+            row(M::Completion, 45, Some(0.0), 0.04),
+            row(M::Completion, 45, Some(1e-3), 0.03),
+            row(M::Completion, 45, Some(1e-1), 0.02),
+        ];
+        let p = sweep_plot(&Sweep::L1 { mu3s: vec![0.0, 1e-3, 1e-1], k: 45 }, &rows, "a → b", 50);
+        assert_eq!(p.series.len(), 3, "no Pokrass rows, no Pokrass line");
+        let ovs = &p.series[0];
+        assert_eq!((ovs.points.as_slice(), ovs.dashed), (&[(-4.0, 5.0), (-1.0, 5.0)][..], true));
+        assert_eq!(p.series[1].points[0], (-4.0, 4.0));
+        assert!(p.title.contains("k = 45") && p.title.contains("a → b"));
+        // Figure 7: one line per method and setting with a scored pair, colours by method.
+        let summary = |method: &str, pairs| MethodSummary {
+            method: method.into(),
+            pairs,
+            failed: 0,
+            points: 0,
+            summary: crate::eval::summarize(&[0.1]),
+            curve: vec![0.5; standard_thresholds().len()],
+            seconds_per_pair: 0.0,
+        };
+        let (scarce, rich) = ([summary("fmap", 2), summary("completion", 0)], [summary("completion", 2)]);
+        let p = figure7_curves("t", &[("scarce", true, &scarce), ("rich", false, &rich)]);
+        let labels: Vec<(&str, bool, usize)> = p.series.iter().map(|s| (s.label.as_str(), s.dashed, s.color)).collect();
+        assert_eq!(labels, [("fmap (scarce)", true, 0), ("completion (rich)", false, 3)]);
     }
 
     #[test]

@@ -9,6 +9,8 @@
 //! kernel maps k_t(p, ·) on X (t = 4 ln 10 / λ_q) at farthest-point-sampled template points p, and G = T0 F holds
 //! their values pulled back to Y, so T0 F = G holds exactly up to the remeshing (on faust_r,
 //! 4415 of Y's 5000 vertices are template points; the others sit within one edge of one).
+//!
+//! The sweeps of the two figures, one typed row per point, are in [`sweep`]; `viz` draws them.
 
 use std::num::NonZero;
 
@@ -22,6 +24,9 @@ use crate::geodesic::Distances;
 use crate::shape::TriMesh;
 use crate::spatial::farthest_points;
 use crate::spectral::Basis;
+
+pub mod sweep;
+pub use sweep::{run_sweep, Sweep, SweepMethod, SweepRow, SweepSettings};
 
 /// For every vertex of Y (m), a vertex of X: the counterpart x_i of the template point y_i
 /// nearest to it on Y. Errors when the ground truth is empty or out of range.
