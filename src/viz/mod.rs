@@ -2,7 +2,9 @@
 //! function of position, Y coloured by pulling those colours back through a map, and scalar
 //! functions (e.g. a transferred delta, Figures 5–6) through a colour map; [`mod@render`] draws
 //! coloured meshes and point clouds to an image and writes it as PNG, without a GPU.
+//! [`plot`] draws the paper's figures (line plots); it needs the default feature `plot`.
 
+#[cfg(feature = "plot")]
 pub mod plot;
 pub mod render;
 
