@@ -139,12 +139,70 @@ pub fn summarize(errors: &[f64]) -> Summary {
     Summary { mean: errors.iter().sum::<f64>() / errors.len().max(1) as f64, at_005: c[0], at_010: c[1], at_025: c[2] }
 }
 
+/// The evaluation of one map: the hard errors at the template points, their summary and
+/// cumulative curve (what `funcorr eval --json` prints).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Evaluation {
+    /// Mean and fractions of `errors`.
+    pub summary: Summary,
+    /// Whether symmetric flips were allowed (the ground truth had a symmetric target).
+    pub symmetric: bool,
+    /// How the geodesic distances were computed.
+    pub geodesics: String,
+    /// The thresholds of `curve` ([`standard_thresholds`]).
+    pub thresholds: Vec<f64>,
+    /// Fraction of errors ≤ each threshold.
+    pub curve: Vec<f64>,
+    /// Hard error (12) per template point (normalized by √area(Y)).
+    pub errors: Vec<f64>,
+}
+
+impl Evaluation {
+    /// The hard errors (12) of `map_xy` (length n) against `gt`, with distances `dist` on Y of
+    /// area `area_y`, summarized at the [`standard_thresholds`]; `geodesics` describes `dist`.
+    /// Errors: those of [`hard_errors`].
+    pub fn of_map(
+        map_xy: &[usize],
+        gt: &GroundTruth,
+        dist: &dyn Distances,
+        area_y: f64,
+        geodesics: impl Into<String>,
+    ) -> Result<Self> {
+        let errors = hard_errors(map_xy, gt, dist, area_y)?;
+        let thresholds = standard_thresholds();
+        Ok(Evaluation {
+            summary: summarize(&errors),
+            symmetric: gt.y_sym.is_some(),
+            geodesics: geodesics.into(),
+            curve: cumulative_curve(&errors, &thresholds),
+            thresholds,
+            errors,
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::geodesic::HeatGeodesics;
     use crate::primitives::icosphere;
     use faer::Mat;
+
+    #[test]
+    fn an_evaluation_summarizes_the_hard_errors() {
+        let mesh = icosphere(1);
+        let g = crate::geodesic::GraphGeodesics::mesh_edges(&mesh).unwrap();
+        let n = mesh.n_vertices();
+        let gt = GroundTruth { x: (0..n).collect(), y: (0..n).collect(), y_sym: None };
+        let ev = Evaluation::of_map(&(0..n).collect::<Vec<_>>(), &gt, &g, mesh.total_area(), "edges").unwrap();
+        assert_eq!((ev.errors.len(), ev.summary.mean, ev.symmetric, ev.geodesics.as_str()), (n, 0.0, false, "edges"));
+        assert!(ev.curve.iter().all(|&c| c == 1.0) && ev.curve.len() == ev.thresholds.len());
+        let mut shifted: Vec<usize> = (0..n).collect();
+        shifted.rotate_left(1);
+        let ev = Evaluation::of_map(&shifted, &gt, &g, mesh.total_area(), "edges").unwrap();
+        assert_eq!(ev.summary, summarize(&ev.errors));
+        assert!(ev.summary.mean > 0.0 && ev.curve[0] < 1.0);
+    }
 
     #[test]
     fn errors_across_components_are_errors_not_infinities() {

@@ -35,7 +35,7 @@ pub(crate) struct EvalArgs {
 }
 
 pub(crate) fn eval(args: &EvalArgs) -> Result<()> {
-    use funcorr::eval::{cumulative_curve, hard_errors, standard_thresholds, summarize, GroundTruth};
+    use funcorr::eval::GroundTruth;
     use funcorr::io::indices::read_index_list_file;
     let x = Shape::load(&args.source)?;
     let target = Shape::load(&args.target)?;
@@ -104,18 +104,12 @@ pub(crate) fn eval(args: &EvalArgs) -> Result<()> {
             }
             _ => unreachable!("point sets without a surface were rejected above"),
         };
-    let errors = hard_errors(&map, &gt, &*geo, area)?;
-    let s = summarize(&errors);
-    let thresholds = standard_thresholds();
-    let curve = cumulative_curve(&errors, &thresholds);
+    let ev = funcorr::eval::Evaluation::of_map(&map, &gt, &*geo, area, description)?;
+    let s = ev.summary;
     if args.json {
-        let v = serde_json::json!({
-            "summary": s, "symmetric": gt.y_sym.is_some(), "geodesics": description,
-            "thresholds": thresholds, "curve": curve, "errors": errors,
-        });
-        outln!("{}", serde_json::to_string_pretty(&v).expect("plain JSON"));
+        outln!("{}", funcorr::io::to_json_sorted(&ev)?);
     } else {
-        outln!("points            {}", errors.len());
+        outln!("points            {}", ev.errors.len());
         outln!("symmetric flips   {}", if gt.y_sym.is_some() { "allowed" } else { "not allowed" });
         outln!("mean error ×100   {:.3}", 100.0 * s.mean);
         outln!("≤ 0.05            {:.1}%", 100.0 * s.at_005);
