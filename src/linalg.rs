@@ -1,9 +1,25 @@
-//! Small dense linear-algebra helpers shared by the solvers (one copy each): the product of two
-//! matrices and the Frobenius inner product. Heavier kernels (blocked GEMMs of the completion
-//! method and of the eigensolver) stay beside the code whose memory layout they are tuned for.
+//! Dense linear-algebra helpers shared by the solvers (one copy each): the small product `mul`,
+//! the Frobenius inner product `frob`, and the tall-skinny products of the completion method
+//! and of the block Lanczos eigensolver (`a_b`, `a_b_into`, `at_b`, `at_b_as_bt_a`).
+//!
+//! **Tall-skinny products.** The long dimension n (vertices, n ≫ p, q) is split into row chunks
+//! run as rayon tasks, each a *sequential* faer GEMM: faer's own parallel GEMM spreads such
+//! products over threads that spin at barriers, which on a 2-core machine (or any busy one)
+//! costs more than it gains (measured 4× slower than sequential on a 52k-vertex mesh under
+//! load), while rayon's idle workers sleep. Chunk boundaries depend only on n and the
+//! [`RowChunks`] of the caller, never on the thread count, and the partial sums of Aᵀ B are
+//! added in chunk order, so results are deterministic.
+//!
+//! The chunking and the operand order are part of the arithmetic: they fix the order of the
+//! floating-point sums. The two callers were tuned separately and keep their own, bit for bit:
+//! the completion solvers use [`RowChunks::SOLVER`] and [`at_b`] (Aᵀ B packed as written), the
+//! eigensolver [`RowChunks::KRYLOV`] and [`at_b_as_bt_a`] (the same product computed as
+//! (Bᵀ A)ᵀ, which packs the thin block rather than the tall basis). Merging the two `Aᵀ B`
+//! paths would change the eigenbases and every result downstream in the last bits.
 
 use faer::linalg::matmul::matmul;
-use faer::{Accum, Mat, MatRef, Par};
+use faer::{Accum, Mat, MatMut, MatRef, Par};
+use rayon::prelude::*;
 
 /// A B (a.nrows() × b.ncols()), sequential: callers parallelize at a coarser level.
 pub fn mul(a: MatRef<f64>, b: MatRef<f64>) -> Mat<f64> {
@@ -16,6 +32,104 @@ pub fn mul(a: MatRef<f64>, b: MatRef<f64>) -> Mat<f64> {
 pub fn frob(x: MatRef<f64>, y: MatRef<f64>) -> f64 {
     debug_assert_eq!((x.nrows(), x.ncols()), (y.nrows(), y.ncols()));
     (0..x.ncols()).map(|j| (0..x.nrows()).map(|i| x[(i, j)] * y[(i, j)]).sum::<f64>()).sum()
+}
+
+/// How a tall-skinny product splits its n rows into rayon tasks (module documentation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RowChunks {
+    /// Rows per task (the last task takes the remainder).
+    pub rows: usize,
+    /// Below this many rows the product is one sequential GEMM (task overhead dominates).
+    pub parallel_from: usize,
+}
+
+impl RowChunks {
+    /// The completion solvers' products (n × k' with k' ≲ 100): 2048 rows per task, in parallel
+    /// from 4096 rows.
+    pub const SOLVER: RowChunks = RowChunks { rows: 2048, parallel_from: 4096 };
+    /// The block Lanczos products (the Krylov basis, n × p with p up to a few hundred): 4096 rows
+    /// per task, in parallel from 16384 rows.
+    pub const KRYLOV: RowChunks = RowChunks { rows: 4096, parallel_from: 16384 };
+}
+
+/// dst ← (dst if `accumulate`) + α A B for tall A (n × p), B (p × q), dst (n × q): the rows of
+/// dst in tasks of `chunks.rows`, each a sequential GEMM (every entry computed by one task).
+pub fn a_b_into(dst: MatMut<f64>, accumulate: bool, a: MatRef<f64>, b: MatRef<f64>, alpha: f64, chunks: RowChunks) {
+    debug_assert_eq!((a.nrows(), a.ncols(), b.ncols()), (dst.nrows(), b.nrows(), dst.ncols()));
+    let accum = if accumulate { Accum::Add } else { Accum::Replace };
+    if dst.nrows() < chunks.parallel_from {
+        matmul(dst, accum, a, b, alpha, Par::Seq);
+        return;
+    }
+    dst.par_row_chunks_mut(chunks.rows).enumerate().for_each(|(i, chunk)| {
+        let rows = chunk.nrows();
+        matmul(chunk, accum, a.subrows(i * chunks.rows, rows), b, alpha, Par::Seq);
+    });
+}
+
+/// A B (n × q) for tall A (n × p) and B (p × q), with the completion solvers' chunking
+/// ([`RowChunks::SOLVER`]).
+pub fn a_b(a: MatRef<f64>, b: MatRef<f64>) -> Mat<f64> {
+    let mut c = Mat::<f64>::zeros(a.nrows(), b.ncols());
+    a_b_into(c.as_mut(), false, a, b, 1.0, RowChunks::SOLVER);
+    c
+}
+
+/// Aᵀ B (p × q) for tall A (n × p) and B (n × q): partial products over row chunks of
+/// [`RowChunks::SOLVER`], added in chunk order. The general form; the eigensolver's variant is
+/// [`at_b_as_bt_a`].
+pub fn at_b(a: MatRef<f64>, b: MatRef<f64>) -> Mat<f64> {
+    debug_assert_eq!(a.nrows(), b.nrows());
+    let chunks = RowChunks::SOLVER;
+    let n = a.nrows();
+    let mut sum = Mat::<f64>::zeros(a.ncols(), b.ncols());
+    if n < chunks.parallel_from {
+        matmul(sum.as_mut(), Accum::Replace, a.transpose(), b, 1.0, Par::Seq);
+        return sum;
+    }
+    let starts: Vec<usize> = (0..n).step_by(chunks.rows).collect();
+    let partials: Vec<Mat<f64>> = starts
+        .par_iter()
+        .map(|&r0| {
+            let len = chunks.rows.min(n - r0);
+            let mut c = Mat::<f64>::zeros(a.ncols(), b.ncols());
+            matmul(c.as_mut(), Accum::Replace, a.subrows(r0, len).transpose(), b.subrows(r0, len), 1.0, Par::Seq);
+            c
+        })
+        .collect();
+    for c in &partials {
+        sum += c;
+    }
+    sum
+}
+
+/// Aᵀ B (p × q) for tall A (n × p) and thin B (n × q, q ≤ p), computed as (Bᵀ A)ᵀ so that the
+/// packed left operand of every GEMM is the thin Bᵀ, not the tall A; partial products over row
+/// chunks of `chunks`, added in chunk order. The same product as [`at_b`], but not the same
+/// bits: the block Lanczos eigensolver's form ([`RowChunks::KRYLOV`]), kept for its results.
+pub fn at_b_as_bt_a(a: MatRef<f64>, b: MatRef<f64>, chunks: RowChunks) -> Mat<f64> {
+    debug_assert_eq!(a.nrows(), b.nrows());
+    let n = a.nrows();
+    if n < chunks.parallel_from {
+        let mut c = Mat::<f64>::zeros(b.ncols(), a.ncols());
+        matmul(c.as_mut(), Accum::Replace, b.transpose(), a, 1.0, Par::Seq);
+        return c.transpose().to_owned();
+    }
+    let starts: Vec<usize> = (0..n).step_by(chunks.rows).collect();
+    let partials: Vec<Mat<f64>> = starts
+        .par_iter()
+        .map(|&r0| {
+            let len = chunks.rows.min(n - r0);
+            let mut c = Mat::<f64>::zeros(b.ncols(), a.ncols());
+            matmul(c.as_mut(), Accum::Replace, b.subrows(r0, len).transpose(), a.subrows(r0, len), 1.0, Par::Seq);
+            c
+        })
+        .collect();
+    let mut sum = Mat::<f64>::zeros(b.ncols(), a.ncols());
+    for c in &partials {
+        sum += c;
+    }
+    sum.transpose().to_owned()
 }
 
 #[cfg(test)]
@@ -34,5 +148,27 @@ mod tests {
             }
         }
         assert_eq!(frob(a.as_ref(), a.as_ref()), (0..6).map(|v| (v * v) as f64).sum::<f64>());
+    }
+
+    #[test]
+    fn tall_products_agree_with_the_plain_product() {
+        // Above both parallel thresholds, with a partial last chunk.
+        let n = 16384 + 1000;
+        let a = Mat::from_fn(n, 5, |i, j| ((i * 7 + j * 3) % 11) as f64 - 5.0);
+        let b = Mat::from_fn(n, 3, |i, j| ((i * 5 + j) % 13) as f64 * 0.5);
+        let c = Mat::from_fn(5, 3, |i, j| (i + j) as f64 - 2.0);
+        // Integer-valued entries: every order of summation is exact.
+        let atb = mul(a.transpose(), b.as_ref());
+        assert_eq!(at_b(a.as_ref(), b.as_ref()), atb);
+        assert_eq!(at_b_as_bt_a(a.as_ref(), b.as_ref(), RowChunks::KRYLOV), atb);
+        let ac = mul(a.as_ref(), c.as_ref());
+        assert_eq!(a_b(a.as_ref(), c.as_ref()), ac);
+        let mut dst = b.clone();
+        a_b_into(dst.as_mut(), true, a.as_ref(), c.as_ref(), -2.0, RowChunks::KRYLOV);
+        assert_eq!(dst, &b - &ac * faer::Scale(2.0));
+        // Below the thresholds.
+        let (a, b) = (a.subrows(0, 100), b.subrows(0, 100));
+        assert_eq!(at_b(a, b), mul(a.transpose(), b));
+        assert_eq!(at_b_as_bt_a(a, b, RowChunks::KRYLOV), mul(a.transpose(), b));
     }
 }

@@ -67,9 +67,10 @@ pub use optimize::{init_from_c, init_from_svd, optimize};
 pub use solve::{solve, solve_with_prior, CompletionOptions, Form, Init, Optimizer, Solution};
 
 pub(crate) use crate::linalg::mul;
-use faer::linalg::matmul::matmul;
-use faer::{Accum, Mat, MatRef, Par};
-use rayon::prelude::*;
+// The tall-skinny products (n × k' bases) with the solvers' chunking, under the names the
+// submodules call them by: gemm_nn(A, B) = A B, gemm_tn(A, B) = Aᵀ B ([`crate::linalg`]).
+pub(crate) use crate::linalg::{a_b as gemm_nn, at_b as gemm_tn};
+use faer::{Mat, MatRef};
 
 use serde::{Deserialize, Serialize};
 
@@ -347,49 +348,6 @@ impl Problem {
     pub fn c_to_bases(&self, c: MatRef<f64>) -> Mat<f64> {
         c.to_owned() * faer::Scale(self.c_scale)
     }
-}
-
-/// Rows per task of the tall-skinny products below. Chunk boundaries do not depend on the
-/// thread count, and partial sums are added in chunk order, so results are deterministic.
-const ROW_CHUNK: usize = 2048;
-
-/// a · b for tall a (rows in parallel chunks, faer's sequential GEMM per chunk: faer's own
-/// parallel GEMM spins at barriers on small machines, see `spectral::lanczos`).
-pub(crate) fn gemm_nn(a: MatRef<f64>, b: MatRef<f64>) -> Mat<f64> {
-    let mut c = Mat::<f64>::zeros(a.nrows(), b.ncols());
-    if a.nrows() < 2 * ROW_CHUNK {
-        matmul(c.as_mut(), Accum::Replace, a, b, 1.0, Par::Seq);
-        return c;
-    }
-    c.as_mut().par_row_chunks_mut(ROW_CHUNK).enumerate().for_each(|(i, chunk)| {
-        let rows = chunk.nrows();
-        matmul(chunk, Accum::Replace, a.subrows(i * ROW_CHUNK, rows), b, 1.0, Par::Seq);
-    });
-    c
-}
-
-/// aᵀ · b for tall a and b with the same row count, in row chunks summed in order.
-pub(crate) fn gemm_tn(a: MatRef<f64>, b: MatRef<f64>) -> Mat<f64> {
-    let n = a.nrows();
-    let mut sum = Mat::<f64>::zeros(a.ncols(), b.ncols());
-    if n < 2 * ROW_CHUNK {
-        matmul(sum.as_mut(), Accum::Replace, a.transpose(), b, 1.0, Par::Seq);
-        return sum;
-    }
-    let starts: Vec<usize> = (0..n).step_by(ROW_CHUNK).collect();
-    let partials: Vec<Mat<f64>> = starts
-        .par_iter()
-        .map(|&r0| {
-            let len = ROW_CHUNK.min(n - r0);
-            let mut c = Mat::<f64>::zeros(a.ncols(), b.ncols());
-            matmul(c.as_mut(), Accum::Replace, a.subrows(r0, len).transpose(), b.subrows(r0, len), 1.0, Par::Seq);
-            c
-        })
-        .collect();
-    for c in &partials {
-        sum += c;
-    }
-    sum
 }
 
 #[cfg(test)]

@@ -12,26 +12,20 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::SparseColMatRef;
 use faer::{Accum, Conj, Mat, MatMut, MatRef, Par, Side};
-use rayon::prelude::*;
 
 use super::{relative_residuals, Normal, Progress, SolveInfo, SpectralOptions};
 use crate::error::{Error, Result};
 use crate::laplacian::Laplacian;
+use crate::linalg::{a_b_into, at_b_as_bt_a, RowChunks};
 
 /// Parallelism handed to faer for the one-off sparse factorization.
 fn par() -> Par {
     Par::rayon(0)
 }
 
-/// Rows per task of the tall-skinny products below.
-const ROW_CHUNK: usize = 4096;
-
-// The Krylov basis is tall and skinny (n × p with p ≪ n) and the blocks are thin (b columns).
-// faer's parallel GEMM spreads such products over threads that spin at barriers, which on a
-// 2-core machine (or any busy one) costs more than it gains: measured 4× slower than
-// sequential on a 52k-vertex mesh under load. We split the long dimension n into row chunks
-// ourselves with rayon (whose idle workers sleep) and run faer's sequential GEMM per chunk;
-// partial sums are added in chunk order, so results do not depend on the thread count.
+// The Krylov basis is tall and skinny (n × p with p ≪ n) and the blocks are thin (b columns):
+// its products are `crate::linalg`'s row-chunked ones, with the chunking tuned for them.
+const CHUNKS: RowChunks = RowChunks::KRYLOV;
 
 /// Eigen-decomposition (ascending) of the small symmetric projected matrix, sequentially:
 /// faer's parallel tridiagonal solver spins at barriers and is slower for p ≲ 1000 here.
@@ -45,48 +39,6 @@ fn ritz_eigen(h: MatRef<f64>) -> Result<(Vec<f64>, Mat<f64>)> {
     self_adjoint_evd(h, s.as_mut(), Some(u.as_mut()), Par::Seq, MemStack::new(&mut buf), Default::default())
         .map_err(|e| Error::numerical("eigensolver", format!("Ritz eigenproblem failed: {e:?}")))?;
     Ok(((0..p).map(|i| s[i]).collect(), u))
-}
-
-/// Below this many rows the tall-skinny products run on one thread (task overhead dominates).
-const PARALLEL_ROWS: usize = 16384;
-
-/// Vᵀ W (p × b) for V (n × p), W (n × b).
-fn gemm_tn(v: MatRef<f64>, w: MatRef<f64>) -> Mat<f64> {
-    let n = v.nrows();
-    if n < PARALLEL_ROWS {
-        let mut c = Mat::<f64>::zeros(w.ncols(), v.ncols());
-        matmul(c.as_mut(), Accum::Replace, w.transpose(), v, 1.0, Par::Seq);
-        return c.transpose().to_owned();
-    }
-    let starts: Vec<usize> = (0..n).step_by(ROW_CHUNK).collect();
-    let partials: Vec<Mat<f64>> = starts
-        .par_iter()
-        .map(|&r0| {
-            let len = ROW_CHUNK.min(n - r0);
-            // Computed as (Wᵀ V)ᵀ: the packed left operand is then the thin Wᵀ, not the tall V.
-            let mut c = Mat::<f64>::zeros(w.ncols(), v.ncols());
-            matmul(c.as_mut(), Accum::Replace, w.subrows(r0, len).transpose(), v.subrows(r0, len), 1.0, Par::Seq);
-            c
-        })
-        .collect();
-    let mut sum = Mat::<f64>::zeros(w.ncols(), v.ncols());
-    for c in &partials {
-        sum += c;
-    }
-    sum.transpose().to_owned()
-}
-
-/// dst ← (dst if accumulate) + alpha · V C, for V (n × p), C (p × q), dst (n × q).
-fn gemm_nn(dst: MatMut<f64>, accumulate: bool, v: MatRef<f64>, c: MatRef<f64>, alpha: f64) {
-    let accum = if accumulate { Accum::Add } else { Accum::Replace };
-    if dst.nrows() < PARALLEL_ROWS {
-        matmul(dst, accum, v, c, alpha, Par::Seq);
-        return;
-    }
-    dst.par_row_chunks_mut(ROW_CHUNK).enumerate().for_each(|(i, chunk)| {
-        let rows = chunk.nrows();
-        matmul(chunk, accum, v.subrows(i * ROW_CHUNK, rows), c, alpha, Par::Seq);
-    });
 }
 
 /// Sparse Cholesky factor L Lᵀ = P (W + sA) Pᵀ (AMD ordering), always *supernodal*: faer's
@@ -210,8 +162,8 @@ fn norm(x: &[f64]) -> f64 {
 fn project_out(v: MatRef<f64>, mut w: MatMut<f64>, mut c: MatMut<f64>) {
     c.fill(0.0);
     for _pass in 0..2 {
-        let coef = gemm_tn(v, w.rb());
-        gemm_nn(w.rb_mut(), true, v, coef.as_ref(), -1.0);
+        let coef = at_b_as_bt_a(v, w.rb(), CHUNKS);
+        a_b_into(w.rb_mut(), true, v, coef.as_ref(), -1.0, CHUNKS);
         c += &coef;
     }
 }
@@ -419,10 +371,10 @@ fn lanczos_run(
         }
         let g = {
             let mut gb = Mat::<f64>::zeros(n, b);
-            gemm_nn(gb.as_mut(), false, g.as_ref(), beta_last.as_ref(), 1.0);
+            a_b_into(gb.as_mut(), false, g.as_ref(), beta_last.as_ref(), 1.0, CHUNKS);
             gb
         };
-        let gram = gemm_tn(g.as_ref(), g.as_ref());
+        let gram = at_b_as_bt_a(g.as_ref(), g.as_ref(), CHUNKS);
         let lambda_ref = super::residual_scale(1.0 / theta[k - 1] - shift, floor);
         let resid: Vec<f64> = (0..k)
             .map(|i| {
@@ -441,7 +393,7 @@ fn lanczos_run(
         }
         if converged == k {
             let mut u = Mat::<f64>::zeros(n, k);
-            gemm_nn(u.as_mut(), false, v.subcols(0, p), y.subcols(0, k), 1.0);
+            a_b_into(u.as_mut(), false, v.subcols(0, p), y.subcols(0, k), 1.0, CHUNKS);
             let lambda: Vec<f64> = (0..k).map(|i| 1.0 / theta[i] - shift).collect();
             // Verify explicitly; if round-off made the estimate optimistic, tighten once and go on.
             if tol >= opts.tol && !residuals_ok(lap, sqrt_m, &u, &lambda, opts.max_residual) {
@@ -463,7 +415,7 @@ fn lanczos_run(
         // Thick restart: keep the `keep` leading Ritz vectors and the residual block.
         info.restarts += 1;
         let mut kept = Mat::<f64>::zeros(n, keep);
-        gemm_nn(kept.as_mut(), false, v.subcols(0, p), y.subcols(0, keep), 1.0);
+        a_b_into(kept.as_mut(), false, v.subcols(0, p), y.subcols(0, keep), 1.0, CHUNKS);
         let resid_block = v.subcols(p, b).to_owned();
         v.subcols_mut(0, keep).copy_from(&kept);
         v.subcols_mut(keep, b).copy_from(&resid_block);
