@@ -15,9 +15,10 @@
 //! cell), C_yx is the weighted least-squares solution of Φ_S C ≈ Ψ_π(S). With every vertex and
 //! w = A_X this is exactly Φᵀ A_X Π Ψ.
 //!
-//! **Why one file (≈ 610 lines without tests).** ZoomOut on samples, its bijective variants and
+//! **Why one file (≈ 590 lines without tests).** ZoomOut on samples, its bijective variants and
 //! the map-quality measures the pipeline selects with (metric distortion, orientation
-//! agreement) share the sampling and pull-back helpers; they are the refinement layer of the
+//! agreement) share the samples ([`crate::spatial::farthest_point_samples`]) and the pull-back
+//! helpers; they are the refinement layer of the
 //! default pipeline and are read together.
 
 use crate::linalg::mul;
@@ -27,85 +28,9 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 use crate::pointwise::nearest_neighbors;
 use crate::shape::TriMesh;
-
-/// A weighted subset of the vertices of a shape.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Samples {
-    /// Vertex ids (distinct).
-    pub vertices: Vec<usize>,
-    /// Weight of every sample (> 0): the vertex weight it stands for (units²).
-    pub weights: Vec<f64>,
-}
-
-impl Samples {
-    /// Every vertex, weighted by its mass (length n).
-    pub fn all(mass: &[f64]) -> Samples {
-        Samples { vertices: (0..mass.len()).collect(), weights: mass.to_vec() }
-    }
-
-    /// Number of samples.
-    pub fn len(&self) -> usize {
-        self.vertices.len()
-    }
-
-    /// Whether there are no samples.
-    pub fn is_empty(&self) -> bool {
-        self.vertices.is_empty()
-    }
-}
-
-/// `count` farthest-point samples of the points (n × 3, Euclidean, deterministic: the first
-/// sample is the point farthest from the centroid), each weighted by the total mass of the
-/// points nearest to it (its Voronoi cell). All points when count ≥ n.
-pub fn farthest_point_samples(points: &[[f64; 3]], mass: &[f64], count: usize) -> Result<Samples> {
-    let n = points.len();
-    if mass.len() != n || n == 0 {
-        return Err(Error::invalid("samples", format!("{n} points and {} weights", mass.len())));
-    }
-    if count == 0 {
-        return Err(Error::invalid("samples", "need at least one sample"));
-    }
-    if count >= n {
-        return Ok(Samples::all(mass));
-    }
-    let d2 = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|c| (a[c] - b[c]).powi(2)).sum::<f64>();
-    let mut centroid = [0.0; 3];
-    for p in points {
-        for c in 0..3 {
-            centroid[c] += p[c] / n as f64;
-        }
-    }
-    let mut next =
-        (0..n).max_by(|&a, &b| d2(&points[a], &centroid).total_cmp(&d2(&points[b], &centroid))).expect("n > 0");
-    let mut best = vec![f64::INFINITY; n];
-    let mut owner = vec![0usize; n];
-    let mut chosen = Vec::with_capacity(count);
-    while chosen.len() < count {
-        let s = chosen.len();
-        chosen.push(next);
-        let c = points[next];
-        let mut far = (0usize, -1.0f64);
-        for (i, p) in points.iter().enumerate() {
-            let d = d2(p, &c);
-            if d < best[i] {
-                best[i] = d;
-                owner[i] = s;
-            }
-            if best[i] > far.1 {
-                far = (i, best[i]);
-            }
-        }
-        if far.1 <= 0.0 {
-            break;
-        }
-        next = far.0;
-    }
-    let mut weights = vec![0.0; chosen.len()];
-    for i in 0..n {
-        weights[owner[i]] += mass[i];
-    }
-    Ok(Samples { vertices: chosen, weights })
-}
+// The samples live with the other spatial queries; re-exported for the pipeline
+// (`crate::matching::axiomatic` names them through this module).
+pub use crate::spatial::{farthest_point_samples, Samples};
 
 /// The pull-back functional map C_yx (k_X × k_Y) of a point map given on the samples of X:
 /// the weighted least-squares solution of Φ_S C ≈ Ψ_{π(S)} (Φ: n × ≥k_X, Ψ: m × ≥k_Y,

@@ -1,6 +1,8 @@
 //! Spatial queries on points and vertices, shared by the layers above (Laplacians, point-cloud
 //! surfaces, graph geodesics, benchmark templates, rendering): exact K nearest neighbours and
-//! farthest-point sampling.
+//! farthest-point sampling, of candidate vertices ([`farthest_points`]) or of all points with
+//! the mass of their Voronoi cells ([`farthest_point_samples`], the samples of ZoomOut in
+//! [`crate::refine`]).
 
 use std::num::NonZero;
 
@@ -101,6 +103,88 @@ pub fn farthest_points(mesh: &TriMesh, candidates: &[usize], count: usize) -> Ve
     chosen
 }
 
+/// A weighted subset of the vertices of a shape.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Samples {
+    /// Vertex ids (distinct).
+    pub vertices: Vec<usize>,
+    /// Weight of every sample (> 0): the vertex weight it stands for (units²).
+    pub weights: Vec<f64>,
+}
+
+impl Samples {
+    /// Every vertex, weighted by its mass (length n).
+    pub fn all(mass: &[f64]) -> Samples {
+        Samples { vertices: (0..mass.len()).collect(), weights: mass.to_vec() }
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.vertices.len()
+    }
+
+    /// Whether there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.vertices.is_empty()
+    }
+}
+
+/// `count` farthest-point samples of the points (n × 3, Euclidean, deterministic: the first
+/// sample is the point farthest from the centroid), each weighted by the total mass of the
+/// points nearest to it (its Voronoi cell; `mass` has length n, e.g. the vertex areas A_X).
+/// All points when count ≥ n.
+///
+/// Errors: no points, `mass.len()` ≠ n, `count` = 0.
+pub fn farthest_point_samples(points: &[[f64; 3]], mass: &[f64], count: usize) -> Result<Samples> {
+    let n = points.len();
+    if mass.len() != n || n == 0 {
+        return Err(Error::invalid("samples", format!("{n} points and {} weights", mass.len())));
+    }
+    if count == 0 {
+        return Err(Error::invalid("samples", "need at least one sample"));
+    }
+    if count >= n {
+        return Ok(Samples::all(mass));
+    }
+    let d2 = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|c| (a[c] - b[c]).powi(2)).sum::<f64>();
+    let mut centroid = [0.0; 3];
+    for p in points {
+        for c in 0..3 {
+            centroid[c] += p[c] / n as f64;
+        }
+    }
+    let mut next =
+        (0..n).max_by(|&a, &b| d2(&points[a], &centroid).total_cmp(&d2(&points[b], &centroid))).expect("n > 0");
+    let mut best = vec![f64::INFINITY; n];
+    let mut owner = vec![0usize; n];
+    let mut chosen = Vec::with_capacity(count);
+    while chosen.len() < count {
+        let s = chosen.len();
+        chosen.push(next);
+        let c = points[next];
+        let mut far = (0usize, -1.0f64);
+        for (i, p) in points.iter().enumerate() {
+            let d = d2(p, &c);
+            if d < best[i] {
+                best[i] = d;
+                owner[i] = s;
+            }
+            if best[i] > far.1 {
+                far = (i, best[i]);
+            }
+        }
+        if far.1 <= 0.0 {
+            break;
+        }
+        next = far.0;
+    }
+    let mut weights = vec![0.0; chosen.len()];
+    for i in 0..n {
+        weights[owner[i]] += mass[i];
+    }
+    Ok(Samples { vertices: chosen, weights })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -117,5 +201,17 @@ mod tests {
         // Duplicated candidates: never more distinct points than exist.
         assert_eq!(farthest_points(&mesh, &[3, 3, 3], 5), vec![0]);
         assert!(farthest_points(&mesh, &[], 5).is_empty());
+    }
+
+    #[test]
+    fn voronoi_samples_carry_the_whole_mass() {
+        let mesh = crate::primitives::icosphere(2);
+        let mass: Vec<f64> = (0..mesh.n_vertices()).map(|i| 1.0 + (i % 3) as f64).collect();
+        let s = farthest_point_samples(mesh.vertices(), &mass, 10).unwrap();
+        assert_eq!(s.len(), 10);
+        assert!(s.weights.iter().all(|&w| w > 0.0));
+        assert!((s.weights.iter().sum::<f64>() - mass.iter().sum::<f64>()).abs() < 1e-9);
+        assert_eq!(farthest_point_samples(mesh.vertices(), &mass, 10_000).unwrap(), Samples::all(&mass));
+        assert!(farthest_point_samples(mesh.vertices(), &mass[1..], 10).is_err());
     }
 }
