@@ -53,15 +53,18 @@ fn norm(a: [f64; 3]) -> f64 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
-/// Union-find with path halving, used for connected components.
+/// Union-find with path halving over the elements 0..n (n < 2³²), for connected components
+/// (meshes, point-cloud soups), the MSER component tree and the persistence clusters.
 pub(crate) struct UnionFind {
     parent: Vec<u32>,
 }
 
 impl UnionFind {
+    /// n singletons.
     pub(crate) fn new(n: usize) -> Self {
         UnionFind { parent: (0..n as u32).collect() }
     }
+    /// The root of the tree of `i` (halving the path to it).
     pub(crate) fn find(&mut self, mut i: u32) -> u32 {
         while self.parent[i as usize] != i {
             let p = self.parent[self.parent[i as usize] as usize];
@@ -70,6 +73,11 @@ impl UnionFind {
         }
         i
     }
+    /// Whether `i` is the root of its tree.
+    pub(crate) fn is_root(&self, i: u32) -> bool {
+        self.parent[i as usize] == i
+    }
+    /// Merges the trees of `a` and `b`; the smaller root survives.
     pub(crate) fn union(&mut self, a: u32, b: u32) {
         let (ra, rb) = (self.find(a), self.find(b));
         if ra != rb {
@@ -77,6 +85,13 @@ impl UnionFind {
             let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
             self.parent[hi as usize] = lo;
         }
+    }
+    /// Merges the tree of root `child` into that of root `survivor`, which stays the root: for
+    /// merges whose survivor the caller chooses (the elder rule of persistence, where the
+    /// component with the higher peak survives). Both must be roots, and distinct.
+    pub(crate) fn union_into(&mut self, child: u32, survivor: u32) {
+        debug_assert!(self.is_root(child) && self.is_root(survivor) && child != survivor);
+        self.parent[child as usize] = survivor;
     }
     /// Component label of every element, numbered 0.. in order of first appearance.
     pub(crate) fn labels(&mut self) -> (usize, Vec<u32>) {

@@ -50,19 +50,15 @@
 //! as the segment's signature, and returns the indicator matrices F (n × s), G (m × s) in matched
 //! order: column j of F corresponds to column j of G.
 
-use std::cmp::Ordering;
-use std::collections::BinaryHeap;
-
 use faer::Mat;
 
 use super::matching::{match_regions, RegionMatch};
 use super::signatures::{hks, hks_times, wks};
 use super::{segments, Descriptors};
 use crate::error::{Error, Result};
-use crate::geodesic::Distances;
-use crate::geodesic::GeodesicMethod;
+use crate::geodesic::{Distances, GeodesicMethod, GraphGeodesics};
 use crate::laplacian::Laplacian;
-use crate::shape::{adjacency, PointSet, TriMesh};
+use crate::shape::{adjacency, PointSet, TriMesh, UnionFind};
 use crate::spectral::Basis;
 
 /// Time of the default function in units of 1/λ₁: t = `DEFAULT_HKS_TIME` / λ₁.
@@ -170,16 +166,6 @@ pub fn graph_edges(lap: &Laplacian) -> Vec<[u32; 2]> {
     edges
 }
 
-/// Root of `i` in a union-find forest stored as parent pointers (path halving).
-fn find(parent: &mut [usize], mut i: usize) -> usize {
-    while parent[i] != i {
-        let p = parent[parent[i]];
-        parent[i] = p;
-        i = p;
-    }
-    i
-}
-
 /// Persistence-based segmentation (ToMATo) of a graph with `n` vertices and undirected `edges`
 /// by the maxima of `f` (length n), keeping the peaks whose persistence is at least
 /// `threshold` × (max f − min f); see the module documentation.
@@ -187,10 +173,13 @@ fn find(parent: &mut [usize], mut i: usize) -> usize {
 /// τ = 0 keeps every local maximum; τ = 1 keeps one segment per connected component. Peaks of
 /// persistence exactly 0 (plateaus) are merged whenever τ > 0.
 ///
-/// Errors: n = 0, `f.len() != n`, a non-finite value of f, τ outside [0, 1], an edge index ≥ n.
+/// Errors: n = 0 or ≥ 2³², `f.len() != n`, a non-finite value of f, τ outside [0, 1], an edge index ≥ n.
 pub fn persistence_segmentation(n: usize, edges: &[[u32; 2]], f: &[f64], threshold: f64) -> Result<Segmentation> {
     if n == 0 {
         return Err(Error::invalid("graph", "it has no vertices"));
+    }
+    if n > u32::MAX as usize {
+        return Err(Error::invalid("graph", format!("{n} vertices (at most 2³² − 1)")));
     }
     if f.len() != n {
         return Err(Error::invalid("function", format!("{} values for {n} vertices", f.len())));
@@ -218,31 +207,30 @@ pub fn persistence_segmentation(n: usize, edges: &[[u32; 2]], f: &[f64], thresho
 
     // `cluster`: the ToMATo forest (roots are the peaks of the current clusters).
     // `component`: superlevel-set components under the elder rule, for the persistence values.
-    // In both, a root is the peak vertex of its tree; usize::MAX marks unprocessed vertices.
-    const NONE: usize = usize::MAX;
-    let mut cluster = vec![NONE; n];
-    let mut component = vec![NONE; n];
+    // In both, a root is the peak vertex of its tree. Vertices are processed by rank: u is
+    // processed before v when rank[u] < rank[v] (before that it is a singleton in both).
+    let mut cluster = UnionFind::new(n);
+    let mut component = UnionFind::new(n);
     let mut persistence = vec![f64::NAN; n];
     let mut higher: Vec<usize> = Vec::new();
     let mut roots: Vec<usize> = Vec::new();
+    let find = |uf: &mut UnionFind, i: usize| uf.find(i as u32) as usize;
     for &v in &order {
         higher.clear();
-        higher.extend(adj[start[v]..start[v + 1]].iter().map(|&u| u as usize).filter(|&u| cluster[u] != NONE));
+        higher.extend(adj[start[v]..start[v + 1]].iter().map(|&u| u as usize).filter(|&u| rank[u] < rank[v]));
         if higher.is_empty() {
-            cluster[v] = v;
-            component[v] = v;
             continue;
         }
         // ToMATo: join the cluster of the highest neighbour, then merge neighbouring clusters.
         let g = *higher.iter().min_by_key(|&&u| rank[u]).expect("not empty");
         let mut e = find(&mut cluster, g);
-        cluster[v] = e;
+        cluster.union_into(v as u32, e as u32);
         for &u in &higher {
             let r = find(&mut cluster, u);
             if r != e {
                 let (low, high) = if rank[r] < rank[e] { (e, r) } else { (r, e) };
                 if merges(f[low] - f[v]) {
-                    cluster[low] = high;
+                    cluster.union_into(low as u32, high as u32);
                     e = high;
                 }
             }
@@ -255,12 +243,12 @@ pub fn persistence_segmentation(n: usize, edges: &[[u32; 2]], f: &[f64], thresho
         let oldest = roots[0];
         for &r in &roots[1..] {
             persistence[r] = f[r] - f[v];
-            component[r] = oldest;
+            component.union_into(r as u32, oldest as u32);
         }
-        component[v] = oldest;
+        component.union_into(v as u32, oldest as u32);
     }
     // Surviving clusters, by decreasing peak.
-    let mut peaks: Vec<usize> = (0..n).filter(|&v| cluster[v] == v).collect();
+    let mut peaks: Vec<usize> = (0..n).filter(|&v| cluster.is_root(v as u32)).collect();
     peaks.sort_unstable_by_key(|&p| rank[p]);
     let mut label_of_root = vec![0u32; n];
     for (s, &p) in peaks.iter().enumerate() {
@@ -308,83 +296,21 @@ pub fn segment(edges: &[[u32; 2]], basis: &Basis, threshold: f64) -> Result<Segm
     persistence_segmentation(basis.n(), edges, &f, threshold)
 }
 
-/// Total order on f64 distances for the Dijkstra heap (smallest first).
-#[derive(PartialEq)]
-struct Item(f64, usize);
-impl Eq for Item {}
-impl PartialOrd for Item {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
-impl Ord for Item {
-    fn cmp(&self, other: &Self) -> Ordering {
-        other.0.total_cmp(&self.0).then(other.1.cmp(&self.1))
-    }
-}
-
-/// Shortest-path distances from `source` on a graph with edge lengths (CSR).
-fn dijkstra(start: &[usize], adj: &[u32], len: &[f64], source: usize) -> Vec<f64> {
-    let n = start.len() - 1;
-    let mut dist = vec![f64::INFINITY; n];
-    let mut heap = BinaryHeap::new();
-    dist[source] = 0.0;
-    heap.push(Item(0.0, source));
-    while let Some(Item(d, v)) = heap.pop() {
-        if d > dist[v] {
-            continue;
-        }
-        for p in start[v]..start[v + 1] {
-            let (u, nd) = (adj[p] as usize, d + len[p]);
-            if nd < dist[u] {
-                dist[u] = nd;
-                heap.push(Item(nd, u));
-            }
-        }
-    }
-    dist
-}
-
 /// Average graph distance of every point to `sources` farthest-point-sampled points (length n,
 /// in the units of the coordinates), on the graph `edges` weighted by Euclidean edge lengths.
 ///
 /// The first source is the point farthest from point 0; each next one is the point farthest from
 /// the sources so far (deterministic). Graph distances along mesh edges overestimate geodesic
 /// distances by a few percent, since paths are restricted to edges (by 6% on average on a
-/// subdivided icosahedron with 2562 vertices); exact geodesics come later.
+/// subdivided icosahedron with 2562 vertices). This is [`average_distance`] with Dijkstra on the
+/// graph ([`GraphGeodesics::point_edges`]).
 ///
-/// Errors: `sources` = 0, an edge index out of range, a disconnected graph.
+/// Errors: `sources` = 0, no points, an edge index out of range, a disconnected graph.
 pub fn average_graph_distance(points: &PointSet, edges: &[[u32; 2]], sources: usize) -> Result<Vec<f64>> {
-    let n = points.len();
     if sources == 0 {
         return Err(Error::invalid("sources", "need at least one source"));
     }
-    let (start, adj) = adjacency(n, edges)?;
-    let mut len = vec![0.0; adj.len()];
-    for v in 0..n {
-        for p in start[v]..start[v + 1] {
-            let (a, b) = (points.point(v), points.point(adj[p] as usize));
-            len[p] = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt();
-        }
-    }
-    let argmax = |d: &[f64]| (0..n).fold(0, |best, i| if d[i] > d[best] { i } else { best });
-    let d0 = dijkstra(&start, &adj, &len, 0);
-    if let Some(i) = d0.iter().position(|d| !d.is_finite()) {
-        return Err(Error::invalid("graph", format!("it is disconnected (vertex {i} is unreachable from vertex 0)")));
-    }
-    let mut source = argmax(&d0);
-    let mut sum = vec![0.0; n];
-    let mut nearest = vec![f64::INFINITY; n];
-    for _ in 0..sources.min(n) {
-        let d = dijkstra(&start, &adj, &len, source);
-        for i in 0..n {
-            sum[i] += d[i];
-            nearest[i] = nearest[i].min(d[i]);
-        }
-        source = argmax(&nearest);
-    }
-    let count = sources.min(n) as f64;
-    Ok(sum.into_iter().map(|s| s / count).collect())
+    average_distance(&GraphGeodesics::point_edges(points, edges)?, sources)
 }
 
 /// Average distance of every vertex to `sources` farthest-point-sampled vertices (length n, in

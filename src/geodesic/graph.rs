@@ -20,6 +20,8 @@ use crate::shape::{PointSet, TriMesh};
 ///   TOSCA `cat0`).
 /// - [`GraphGeodesics::knn`]: the symmetric K-nearest-neighbour graph of a point set
 ///   (i ~ j when j is among the K nearest of i or vice versa), lengths = Euclidean distances.
+/// - [`GraphGeodesics::point_edges`]: given edges between points (any dimension), lengths =
+///   Euclidean distances.
 /// - [`GraphGeodesics::from_edges`]: any undirected graph.
 ///
 /// Unreachable vertices (other components) get distance `f64::INFINITY`.
@@ -100,6 +102,25 @@ impl GraphGeodesics {
             })
             .collect();
         Self::from_edges(mesh.n_vertices(), &edges)
+    }
+
+    /// The graph `edges` (undirected pairs of indices into `points`, any dimension d) with
+    /// Euclidean edge lengths ‖p_i − p_j‖ (in the units of the coordinates), e.g. the mesh edges
+    /// or the sparsity pattern of a Laplacian on a point set.
+    ///
+    /// Errors: no points, an index ≥ n, a non-finite length.
+    pub fn point_edges(points: &PointSet, edges: &[[u32; 2]]) -> Result<Self> {
+        let n = points.len();
+        let mut lengths = Vec::with_capacity(edges.len());
+        for (e, &[a, b]) in edges.iter().enumerate() {
+            let (a, b) = (a as usize, b as usize);
+            if a >= n || b >= n {
+                return Err(Error::invalid("edges", format!("edge {e} = [{a}, {b}] is out of range (n = {n})")));
+            }
+            let (p, q) = (points.point(a), points.point(b));
+            lengths.push((a, b, p.iter().zip(q).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt()));
+        }
+        Self::from_edges(n, &lengths)
     }
 
     /// The symmetric K-nearest-neighbour graph of `points` (any dimension d; Euclidean edge
