@@ -6,6 +6,7 @@
 //! cargo run --release --example cloud_laplacian -- ../shared/data/faust_r/tr_reg_000.off [k [count]]
 //! ```
 
+use funcorr::cloud::{cloud_laplacian, DEFAULT_NEIGHBOURS};
 use funcorr::shape::Shape;
 use funcorr::spectral::{eigen_basis, SpectralOptions};
 use funcorr::{laplacian, Error, Result};
@@ -20,9 +21,9 @@ fn main() -> Result<()> {
     let count: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(mesh.n_vertices());
     let opts = SpectralOptions::new(k);
     let reference = eigen_basis(&laplacian::cotangent(&mesh)?, &opts, None)?.0;
-    let vertex_cloud = laplacian::point_cloud(mesh.vertices(), funcorr::cloud::DEFAULT_NEIGHBOURS)?.0;
+    let vertex_cloud = cloud_laplacian(mesh.vertices(), DEFAULT_NEIGHBOURS)?.0;
     let sampled = mesh.sample_surface(count, 1)?;
-    let resampled = laplacian::point_cloud(&sampled, funcorr::cloud::DEFAULT_NEIGHBOURS)?.0;
+    let resampled = cloud_laplacian(&sampled, DEFAULT_NEIGHBOURS)?.0;
     println!("{path}: {} vertices, area {:.6}", mesh.n_vertices(), mesh.total_area());
     for (name, lap) in [("vertices as a cloud", &vertex_cloud), ("resampled cloud", &resampled)] {
         let b = eigen_basis(lap, &opts, None)?.0;

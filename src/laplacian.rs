@@ -7,6 +7,9 @@
 //! - Triangle meshes: cotangent weights (2) with the lumped barycentric mass a_i = ⅓ Σ area.
 //! - Point clouds and abstract data: a symmetric K-nearest-neighbour graph with Gaussian weights
 //!   (1) and self-tuning bandwidth, vertex weights A = I (unnormalized) or A = D (random walk).
+//! - Point clouds sampling a surface: the point-cloud Laplacian of Sharp & Crane 2020 is built
+//!   in [`crate::cloud::cloud_laplacian`] (above this module: it needs the cloud's surface),
+//!   from [`cotangent`] of the cloud's triangle soup, as [`LaplacianKind::PointCloud`].
 
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use rayon::prelude::*;
@@ -247,25 +250,6 @@ pub(crate) fn cotangent_from_lengths(
     Ok(Laplacian { w: assemble_symmetric(n, entries), mass, kind: LaplacianKind::Cotangent })
 }
 
-/// The point-cloud Laplacian of Sharp & Crane 2020 (robust-laplacian's): the cotangent Laplacian
-/// and barycentric mass of the union of the local Delaunay fans of K nearest neighbours
-/// ([`crate::cloud::cloud_surface`]), divided by 3 because that soup covers the surface about
-/// three times. Its spectrum and mass agree with the cotangent Laplacian of the sampled surface
-/// (units: the coordinates'), so descriptors and maps are comparable between a mesh and a cloud.
-/// Returns the Laplacian and the surface (normals and soup, for gradients and orientation).
-pub fn point_cloud(points: &[[f64; 3]], k: usize) -> Result<(Laplacian, crate::cloud::CloudSurface)> {
-    let surface = crate::cloud::cloud_surface(points, k)?;
-    let mut lap = cotangent(&surface.soup)?;
-    for v in lap.w.val_mut() {
-        *v /= 3.0;
-    }
-    for a in &mut lap.mass {
-        *a /= 3.0;
-    }
-    lap.kind = LaplacianKind::PointCloud;
-    Ok((lap, surface))
-}
-
 /// Laplacian of a graph given by weighted undirected edges `(i, j, w_ij)` (each edge once; w ≥ 0)
 /// on `n` vertices, with vertex weights A = I or A = D.
 ///
@@ -462,28 +446,6 @@ mod tests {
         let rw = knn_graph(&p3, &KnnOptions { vertex_weights: VertexWeights::Degree, ..Default::default() }).unwrap();
         for i in 0..n {
             assert!((rw.mass[i] - d[i][i]).abs() < 1e-12);
-        }
-    }
-
-    #[test]
-    fn point_cloud_spectrum_matches_the_mesh() {
-        use crate::primitives::bumpy_sphere;
-        use crate::spectral::{eigen_basis, SpectralOptions};
-        let m = bumpy_sphere(4);
-        let mesh = eigen_basis(&cotangent(&m).unwrap(), &SpectralOptions::new(20), None).unwrap().0;
-        let (lap, _) = point_cloud(m.vertices(), crate::cloud::DEFAULT_NEIGHBOURS).unwrap();
-        assert_eq!(lap.kind, LaplacianKind::PointCloud);
-        let total: f64 = lap.mass.iter().sum();
-        assert!((total / m.total_area() - 1.0).abs() < 0.03, "cloud area {total} vs {}", m.total_area());
-        let cloud = eigen_basis(&lap, &SpectralOptions::new(20), None).unwrap().0;
-        for i in 1..20 {
-            let r = cloud.eigenvalues[i] / mesh.eigenvalues[i];
-            assert!(
-                (r - 1.0).abs() < 0.05,
-                "eigenvalue {i}: cloud {} vs mesh {}",
-                cloud.eigenvalues[i],
-                mesh.eigenvalues[i]
-            );
         }
     }
 

@@ -6,7 +6,7 @@ use std::sync::OnceLock;
 
 use serde::{Deserialize, Serialize};
 
-use crate::cloud::{CloudSurface, DEFAULT_NEIGHBOURS};
+use crate::cloud::{cloud_laplacian, CloudSurface, DEFAULT_NEIGHBOURS};
 use crate::error::{Error, Result};
 use crate::laplacian::{self, KnnOptions, Laplacian};
 use crate::operators::FaceGradients;
@@ -124,7 +124,7 @@ impl PreparedShape {
 /// The Laplacian of a shape for `choice`, and its surface when it has one.
 pub fn build_laplacian(shape: &Shape, choice: LaplacianChoice) -> Result<(Laplacian, Option<Surface>)> {
     let cloud = |pts: &[[f64; 3]], k: usize| -> Result<(Laplacian, Option<Surface>)> {
-        let (lap, surface) = laplacian::point_cloud(pts, k)?;
+        let (lap, surface) = cloud_laplacian(pts, k)?;
         Ok((lap, Some(Surface::Cloud(surface))))
     };
     let points3 = |shape: &Shape| -> Option<Vec<[f64; 3]>> {
