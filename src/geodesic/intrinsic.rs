@@ -13,6 +13,7 @@
 //! intrinsic triangulation need not be a simplicial complex), so edges are identified by index,
 //! never by their endpoints. Boundary and non-manifold edges are never flipped.
 
+use super::topology::{edge_records, place};
 use crate::error::Result;
 use crate::laplacian::{cotangent_from_lengths, heron, mollified_lengths, Laplacian};
 use crate::shape::TriMesh;
@@ -57,27 +58,14 @@ fn cot(l: [f64; 3], c: usize) -> f64 {
     }
 }
 
-/// Position (x, y ≥ 0) of the point at distance `l0` from (0, 0) and `l1` from (len, 0).
-fn place(len: f64, l0: f64, l1: f64) -> [f64; 2] {
-    let x = (len * len + l0 * l0 - l1 * l1) / (2.0 * len);
-    [x, (l0 * l0 - x * x).max(0.0).sqrt()]
-}
-
 impl IntrinsicTriangulation {
     /// The mesh's own triangulation (triangles with a repeated vertex skipped, lengths mollified
     /// as for [`crate::laplacian::cotangent`]), not yet flipped.
     pub fn new(mesh: &TriMesh) -> Result<Self> {
         let (kept, lengths) = mollified_lengths(mesh)?;
         let faces: Vec<[u32; 3]> = kept.iter().map(|&f| mesh.faces()[f]).collect();
-        // Edges: sort (min, max, face, corner) records; equal endpoints = one edge.
-        let mut rec: Vec<(u32, u32, u32, u8)> = Vec::with_capacity(faces.len() * 3);
-        for (f, t) in faces.iter().enumerate() {
-            for c in 0..3 {
-                let (a, b) = (t[(c + 1) % 3], t[(c + 2) % 3]);
-                rec.push((a.min(b), a.max(b), f as u32, c as u8));
-            }
-        }
-        rec.sort_unstable();
+        // Edges: sorted (min, max, face, corner) records; equal endpoints = one edge.
+        let rec = edge_records(&faces);
         let mut fe = vec![[0u32; 3]; faces.len()];
         let mut len = Vec::new();
         let mut ef = Vec::new();

@@ -44,6 +44,20 @@ pub(crate) fn place(len: f64, l0: f64, l1: f64) -> [f64; 2] {
     [x, (l0 * l0 - x * x).max(0.0).sqrt()]
 }
 
+/// The edges of `faces` as records (min vertex, max vertex, face, corner k opposite the edge),
+/// three per face, sorted: the records of one undirected edge are adjacent, its faces ascending.
+pub(crate) fn edge_records(faces: &[[u32; 3]]) -> Vec<(u32, u32, u32, u8)> {
+    let mut rec: Vec<(u32, u32, u32, u8)> = Vec::with_capacity(faces.len() * 3);
+    for (f, t) in faces.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+            rec.push((a.min(b), a.max(b), f as u32, k as u8));
+        }
+    }
+    rec.sort_unstable();
+    rec
+}
+
 /// Tolerance on the total angle for calling a vertex flat rather than a saddle: vertices with
 /// total angle ≥ 2π − `FLAT_TOL` are treated as possible bend points (conservative; exact flat
 /// vertices do not need it, but it is harmless and protects collinear configurations).
@@ -73,15 +87,7 @@ impl Topology {
                 fv.push(*t);
             }
         }
-        // Edges: sort (min, max, face, corner) records.
-        let mut rec: Vec<(u32, u32, u32, u8)> = Vec::with_capacity(fv.len() * 3);
-        for (f, t) in fv.iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-                rec.push((a.min(b), a.max(b), f as u32, k as u8));
-            }
-        }
-        rec.sort_unstable();
+        let rec = edge_records(&fv);
         let mut ev = Vec::new();
         let mut ef_start = vec![0u32];
         let mut ef = Vec::with_capacity(rec.len());
