@@ -30,7 +30,7 @@ use crate::pointwise::nearest_neighbors;
 use crate::shape::TriMesh;
 // The samples live with the other spatial queries; re-exported for the pipeline
 // (`crate::matching::axiomatic` names them through this module).
-pub use crate::spatial::{farthest_point_samples, Samples};
+use crate::spatial::Samples;
 
 /// The pull-back functional map C_yx (k_X × k_Y) of a point map given on the samples of X:
 /// the weighted least-squares solution of Φ_S C ≈ Ψ_{π(S)} (Φ: n × ≥k_X, Ψ: m × ≥k_Y,
@@ -595,6 +595,7 @@ mod tests {
     use super::*;
     use crate::laplacian::cotangent;
     use crate::primitives::bumpy_sphere;
+    use crate::spatial::farthest_point_samples;
     use crate::spectral::{eigen_basis, SpectralOptions};
 
     #[test]

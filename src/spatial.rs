@@ -34,6 +34,14 @@ pub(crate) fn knn3(points: &[[f64; 3]], k: usize) -> Vec<Vec<(f64, usize)>> {
         .collect()
 }
 
+/// For every query point, the index of the nearest of `points` (Euclidean, by a k-d tree:
+/// kiddo's exact nearest neighbour). `points` must not be empty (the caller checks).
+pub fn nearest3(points: &[[f64; 3]], queries: &[[f64; 3]]) -> Vec<usize> {
+    let tree: kiddo::ImmutableKdTree<f64, 3> = kiddo::ImmutableKdTree::new_from_slice(points);
+    let one = NonZero::new(1).expect("1 > 0");
+    queries.iter().map(|q| tree.nearest_n::<kiddo::SquaredEuclidean>(q, one)[0].item as usize).collect()
+}
+
 /// The K nearest neighbours of every point (excluding itself): for point i, `K` pairs
 /// (squared distance, index), ascending. Exact.
 ///

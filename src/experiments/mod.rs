@@ -12,8 +12,6 @@
 //!
 //! The sweeps of the two figures, one typed row per point, are in [`sweep`]; `viz` draws them.
 
-use std::num::NonZero;
-
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
 
@@ -40,14 +38,7 @@ pub fn dense_map_yx(y: &TriMesh, gt: &GroundTruth, n: usize) -> Result<Vec<usize
     }
     let v = y.vertices();
     let pts: Vec<[f64; 3]> = gt.y.iter().map(|&j| v[j]).collect();
-    let tree: kiddo::ImmutableKdTree<f64, 3> = kiddo::ImmutableKdTree::new_from_slice(&pts);
-    let one = NonZero::new(1).expect("1 > 0");
-    Ok(v.iter()
-        .map(|q| {
-            let nn = tree.nearest_n::<kiddo::SquaredEuclidean>(q, one);
-            gt.x[nn[0].item as usize]
-        })
-        .collect())
+    Ok(crate::spatial::nearest3(&pts, v).into_iter().map(|i| gt.x[i]).collect())
 }
 
 /// Ideally corresponding data: F (n × q) heat kernel maps on X at q farthest-point-sampled

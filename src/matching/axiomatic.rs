@@ -30,7 +30,8 @@ use crate::error::{Error, Result};
 use crate::fmap::axiomatic::{axiomatic_sizes, AxiomaticOptions, ShapeData};
 use crate::fmap::energy::{EnergyWeights, Orientation};
 use crate::prepared::PreparedShape;
-use crate::refine::{self, Samples, ZoomOutOptions};
+use crate::refine::{self, ZoomOutOptions};
+use crate::spatial::{farthest_point_samples, Samples};
 
 /// A ZoomOut schedule on vertex samples.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -136,7 +137,7 @@ pub struct AxiomaticResult {
 
 fn samples_of(s: &PreparedShape, count: usize) -> Result<Samples> {
     match (s.positions(), count) {
-        (Some(p), c) if c > 0 => refine::farthest_point_samples(p, &s.basis.mass, c),
+        (Some(p), c) if c > 0 => farthest_point_samples(p, &s.basis.mass, c),
         _ => Ok(Samples::all(&s.basis.mass)),
     }
 }
@@ -371,7 +372,7 @@ mod tests {
         // The orientation term is lower for the true map than for the mirrored one (both
         // functional maps exact pull-backs at k = 20).
         let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
-        let all = refine::Samples::all(&x.basis.mass);
+        let all = Samples::all(&x.basis.mass);
         let c_true = refine::pullback(phi, psi, &all, &truth, 20, 20).unwrap();
         let c_mirror = refine::pullback(phi, psi, &all, &mirrored, 20, 20).unwrap();
         let p = AxiomaticPipeline::default();
