@@ -278,7 +278,7 @@ fn main() -> Result<()> {
             let r = matching::run(&x.basis, &y.basis, Some((&x.lap, &y.lap)), &f, &g, &opts)?;
             let secs = t.elapsed().as_secs_f64();
             let s = summarize(&hard_errors(&r.map_xy, &gt, &geo, y.mesh.total_area())?);
-            let iters = r.solver.get("iterations").and_then(|v| v.as_u64()).unwrap_or(0);
+            let iters = r.solver.as_ref().map_or(0, |s| s.iterations());
             println!(
                 "{nx}-{ny} {name:<24} q {:>4}  mean {:>6.2}  <=.05 {:>5.1}%  <=.10 {:>5.1}%  it {:>4}  {:>6.1} s",
                 f.q(),

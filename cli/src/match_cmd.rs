@@ -167,46 +167,50 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     st.run("write", || {
         // Everything goes into a staging directory, published whole at the end (io::staged).
         funcorr::io::staged::StagedDir::create(&args.output)?.write_with(|out| {
-        write_map_files(out, &r.map_xy, args.one_based)?;
-        write_mat_npy(&out.join("C.npy"), &r.c)?;
-        if r.c_method.nrows() != r.c.nrows() || opts.refine != funcorr::matching::Refine::None {
-            write_mat_npy(&out.join("C_method.npy"), &r.c_method)?;
-        }
-        if let Some((a, b)) = &r.coefficients {
-            write_mat_npy(&out.join("A.npy"), a)?;
-            write_mat_npy(&out.join("B.npy"), b)?;
-        }
-        for &i in &args.soft {
-            let t = funcorr::pointwise::soft_map_column(
-                bx.eigenvectors.as_ref(),
-                by.eigenvectors.as_ref(),
-                r.c_method.as_ref(),
-                i,
-            )?;
-            funcorr::io::npy::write_npy_matrix(
-                &out.join(format!("soft_{i}.npy")),
-                &funcorr::io::DenseMatrix { rows: t.len(), cols: 1, data: t.clone() },
-            )?;
-            if let Some(mut dy) = mesh_data(y) {
-                dy.colors = Some(funcorr::viz::diverging_colors(&t));
-                funcorr::io::write_mesh(&out.join(format!("soft_{i}.ply")), &dy)?;
+            write_map_files(out, &r.map_xy, args.one_based)?;
+            write_mat_npy(&out.join("C.npy"), &r.c)?;
+            if r.c_method.nrows() != r.c.nrows() || opts.refine != funcorr::matching::Refine::None {
+                write_mat_npy(&out.join("C_method.npy"), &r.c_method)?;
             }
-        }
-        let report = serde_json::json!({
-            "x": args.x.display().to_string(), "y": args.y.display().to_string(),
-            "n": x.n_vertices(), "m": y.n_vertices(),
-            "data": args.data, "q": f.q(),
-            "options": opts,
-            "basis_size": basis_k,
-            "final_k": r.c.nrows(),
-            "solver": r.solver,
-            "candidates": r.candidates.as_ref().map(|(c, i)| serde_json::json!({"candidates": c, "chosen": i})),
-            "stages": r.stages.iter().map(|(n, s)| serde_json::json!({"stage": n, "seconds": s})).collect::<Vec<_>>(),
-            "log": stages,
-        });
-        let p = out.join("report.json");
-        funcorr::io::write_atomic(&p, serde_json::to_string_pretty(&report).expect("plain JSON"))?;
-        write_colour_transfer(out, x, y, &r.map_yx, (!args.no_render).then_some((size, &view)))
+            if let Some((a, b)) = &r.coefficients {
+                write_mat_npy(&out.join("A.npy"), a)?;
+                write_mat_npy(&out.join("B.npy"), b)?;
+            }
+            for &i in &args.soft {
+                let t = funcorr::pointwise::soft_map_column(
+                    bx.eigenvectors.as_ref(),
+                    by.eigenvectors.as_ref(),
+                    r.c_method.as_ref(),
+                    i,
+                )?;
+                funcorr::io::npy::write_npy_matrix(
+                    &out.join(format!("soft_{i}.npy")),
+                    &funcorr::io::DenseMatrix { rows: t.len(), cols: 1, data: t.clone() },
+                )?;
+                if let Some(mut dy) = mesh_data(y) {
+                    dy.colors = Some(funcorr::viz::diverging_colors(&t));
+                    funcorr::io::write_mesh(&out.join(format!("soft_{i}.ply")), &dy)?;
+                }
+            }
+            #[derive(serde::Serialize)]
+            struct ReportFile<'a> {
+                x: String,
+                y: String,
+                data: &'a str,
+                #[serde(flatten)]
+                run: funcorr::matching::MatchReport<'a>,
+                log: &'a [String],
+            }
+            let report = ReportFile {
+                x: args.x.display().to_string(),
+                y: args.y.display().to_string(),
+                data: &args.data,
+                run: r.report(&opts, x.n_vertices(), y.n_vertices(), f.q(), basis_k),
+                log: &stages,
+            };
+            let p = out.join("report.json");
+            funcorr::io::write_atomic(&p, funcorr::io::to_json_sorted(&report)?)?;
+            write_colour_transfer(out, x, y, &r.map_yx, (!args.no_render).then_some((size, &view)))
         })
     })?;
     st.note(format!("q {} | C {}×{}", f.q(), r.c.nrows(), r.c.ncols()));

@@ -64,7 +64,7 @@ pub use objective::{evaluate, value, CompletionParams, Evaluation, LowNorm, Term
 // Scaling is defined below.
 pub use lbfgs::{CompletionReport, OptimizeOptions};
 pub use optimize::{init_from_c, init_from_svd, optimize};
-pub use solve::{solve, solve_with_prior, CompletionOptions, Form, Init, Optimizer, Solution};
+pub use solve::{solve, solve_with_prior, CompletionOptions, Form, Init, Optimizer, Solution, SolverReport};
 
 pub(crate) use crate::linalg::mul;
 // The tall-skinny products (n × k' bases) with the solvers' chunking, under the names the

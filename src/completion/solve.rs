@@ -5,12 +5,12 @@
 use faer::{Mat, MatRef};
 use serde::{Deserialize, Serialize};
 
-use super::convex::{self, AdmmOptions};
+use super::convex::{self, AdmmOptions, AdmmReport};
 use super::fixed_rank::{self, FullRank, RankPoint, SubspaceRank};
 use super::full::{low_norm_objective, metric, scale_rows, unscale_rows, FullProblem};
 use super::lbfgs;
 use super::lbfgs::{CompletionReport, OptimizeOptions};
-use super::objective::CompletionParams;
+use super::objective::{CompletionParams, Terms};
 use super::optimize::{init_from_c, init_from_svd, optimize};
 use super::{gemm_nn, gemm_tn, mul, Problem, Scaling};
 use crate::descriptors::Descriptors;
@@ -108,6 +108,52 @@ impl CompletionOptions {
     }
 }
 
+/// What the optimizer of a completion form did: a descent method (L-BFGS or the Riemannian CG,
+/// [`CompletionReport`]) or ADMM (the low-rank form (9), [`AdmmReport`]). Serialized as the
+/// report inside (no tag).
+#[derive(Clone, Debug, Serialize)]
+#[serde(untagged)]
+pub enum SolverReport {
+    /// L-BFGS or the Riemannian CG.
+    Descent(CompletionReport),
+    /// ADMM.
+    Admm(AdmmReport),
+}
+
+impl SolverReport {
+    /// Iterations done (accepted steps; ADMM iterations).
+    pub fn iterations(&self) -> usize {
+        match self {
+            SolverReport::Descent(r) => r.iterations,
+            SolverReport::Admm(r) => r.iterations,
+        }
+    }
+
+    /// The weighted terms of the objective at the solution.
+    pub fn terms(&self) -> &Terms {
+        match self {
+            SolverReport::Descent(r) => &r.terms,
+            SolverReport::Admm(r) => &r.terms,
+        }
+    }
+
+    /// Whether a tolerance was met (not an iteration cap or a failed line search).
+    pub fn converged(&self) -> bool {
+        match self {
+            SolverReport::Descent(r) => r.converged,
+            SolverReport::Admm(r) => r.converged,
+        }
+    }
+}
+
+impl std::fmt::Display for SolverReport {
+    /// One line: iterations, whether converged, the final objective.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let c = if self.converged() { "converged" } else { "not converged" };
+        write!(f, "{} iterations, {c}, objective {:.6e}", self.iterations(), self.terms().total)
+    }
+}
+
 /// A solution: the correspondence kernel T = L Rᵀ (m × n, in the problem's units) in factored
 /// form, the functional map between the input bases, and what the optimizer did.
 #[derive(Clone, Debug)]
@@ -121,8 +167,8 @@ pub struct Solution {
     pub c: Mat<f64>,
     /// (A, B) (k' × k) for the subspace form, in the problem's units.
     pub coefficients: Option<(Mat<f64>, Mat<f64>)>,
-    /// The optimizer's report (iterations, terms, times) as JSON.
-    pub report: serde_json::Value,
+    /// What the optimizer did (iterations, terms, times).
+    pub report: SolverReport,
     /// The final objective.
     pub objective: f64,
 }
@@ -219,7 +265,7 @@ pub fn solve_with_prior(
             Optimizer::Lbfgs => {
                 let (a, b, r) = optimize(&sub, params, &opts.optimize, a0.as_ref(), b0.as_ref())?;
                 let obj = r.terms.total;
-                (a, b, serde_json::to_value(&r).expect("plain report"), obj)
+                (a, b, SolverReport::Descent(r), obj)
             }
             Optimizer::Rcg => {
                 let obj = SubspaceRank { problem: &sub, params: params.clone() };
@@ -227,7 +273,7 @@ pub fn solve_with_prior(
                 let (x, r) = fixed_rank::minimize(&obj, x0, &opts.optimize)?;
                 let (a, b) = x.balanced();
                 let o = r.terms.total;
-                (a, b, serde_json::to_value(&r).expect("plain report"), o)
+                (a, b, SolverReport::Descent(r), o)
             }
         };
         let left = gemm_nn(sub.psi.as_ref(), a.as_ref());
@@ -248,7 +294,7 @@ pub fn solve_with_prior(
             let (ls, rs) = x.balanced();
             let (l, rr) = obj.unscale(ls.as_ref(), rs.as_ref());
             let o = r.terms.total;
-            (l, rr, serde_json::to_value(&r).expect("plain report"), o)
+            (l, rr, SolverReport::Descent(r), o)
         }
         (Form::FixedRank | Form::LowNorm, Optimizer::Lbfgs) => {
             let p = if opts.form == Form::FixedRank {
@@ -278,14 +324,14 @@ pub fn solve_with_prior(
                 let (lb, rb) = RankPoint::from_factors(ls.as_ref(), rs.as_ref(), k)?.balanced();
                 (l, r) = obj.unscale(lb.as_ref(), rb.as_ref());
             }
-            (l, r, serde_json::to_value(&rep).expect("plain report"), o)
+            (l, r, SolverReport::Descent(rep), o)
         }
         (Form::LowRank, _) => {
             let t0 = mul(u0.as_ref(), v0.transpose());
             let (t, rep) = convex::solve(&full, params, &opts.admm, t0.as_ref(), k)?;
             let (l, r) = factor_dense(t.as_ref(), kp)?;
             let o = rep.terms.total;
-            (l, r, serde_json::to_value(&rep).expect("plain report"), o)
+            (l, r, SolverReport::Admm(rep), o)
         }
         _ => return Err(Error::invalid("optimizer", "this form cannot use that optimizer")),
     };

@@ -235,7 +235,7 @@ impl<'a> Sterile<'a> {
         &self,
         opts: &crate::completion::CompletionOptions,
         init_k: usize,
-    ) -> Result<(Mat<f64>, serde_json::Value)> {
+    ) -> Result<(Mat<f64>, crate::completion::SolverReport)> {
         let c0 = self.ovsjanikov(init_k.min(opts.k_prime).min(opts.k))?;
         let s = crate::completion::solve(self.bx, self.by, None, &self.f, &self.g, c0.as_ref(), opts)?;
         Ok((s.c, s.report))

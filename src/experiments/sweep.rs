@@ -196,7 +196,7 @@ pub fn run_sweep(
             SweepMethod::Completion => {
                 let opts = settings.completion_options(k, sweep.paper_mu1(), mu3)?;
                 let (c, report) = setup.completion(&opts, settings.init_k.min(q))?;
-                iterations = report.get("iterations").and_then(|v| v.as_u64());
+                iterations = Some(report.iterations() as u64);
                 c
             }
         };

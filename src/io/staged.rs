@@ -163,12 +163,8 @@ impl StagedDir {
                 dir = d.parent();
             }
         }
-        let json = serde_json::json!({
-            "tool": "funcorr",
-            "version": env!("CARGO_PKG_VERSION"),
-            "files": files,
-        });
-        super::write_atomic(&manifest, serde_json::to_string_pretty(&json).expect("plain JSON") + "\n")?;
+        let json = Manifest { tool: "funcorr", version: env!("CARGO_PKG_VERSION"), files: &files };
+        super::write_atomic(&manifest, super::to_json_sorted(&json)? + "\n")?;
         drop(lock);
         // `self` drops on return: the (now empty) staging directory goes.
         Ok(files)
@@ -281,6 +277,14 @@ fn staged_files(dir: &Path) -> Result<Vec<String>> {
     }
     out.sort();
     Ok(out)
+}
+
+/// `funcorr-manifest.json`: which tool wrote the directory and the files it published.
+#[derive(serde::Serialize)]
+struct Manifest<'a> {
+    tool: &'a str,
+    version: &'a str,
+    files: &'a [String],
 }
 
 /// The files listed in a previous manifest, keeping only plain relative paths (no `..`, no

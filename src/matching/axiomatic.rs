@@ -435,8 +435,11 @@ mod tests {
             ..MatchOptions::default()
         };
         let res = run_prepared(&x, &y, &fx, &gy, &opts(Orientation::Preserve)).unwrap();
-        let prior = res.solver["terms"]["prior"].as_f64().unwrap();
-        assert!(prior > 0.0, "the prior is part of the objective: {}", res.solver["terms"]);
+        let Some(crate::matching::SolverReport::Completion(report)) = &res.solver else {
+            panic!("no completion report")
+        };
+        let prior = report.terms().prior;
+        assert!(prior > 0.0, "the prior is part of the objective: {:?}", report.terms());
         let (good, bad) = (agreement(&res.map_xy, &truth), agreement(&res.map_xy, &mirrored));
         assert!(good > 0.5 && bad < 0.1, "preserve: recovered {good} of the true map, {bad} of its mirror image");
         let res = run_prepared(&x, &y, &fx, &gy, &opts(Orientation::Reverse)).unwrap();

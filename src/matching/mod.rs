@@ -170,6 +170,82 @@ impl MatchOptions {
     }
 }
 
+/// What the coupled-bases solver (eq. (7)) did.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct CoupledReport {
+    /// Conjugate-gradient iterations done.
+    pub iterations: usize,
+    /// Final data term ‖Âᵀ P − B̂ᵀ Q‖² / s.
+    pub data: f64,
+    /// Final off(Pᵀ Λ̃_X P) (not multiplied by μ1).
+    pub off_x: f64,
+    /// Final off(Qᵀ Λ̃_Y Q) (not multiplied by μ2).
+    pub off_y: f64,
+}
+
+/// What the solver of a method did, for the methods that iterate: the coupled bases and the
+/// completion method. Serialized as the report inside (no tag).
+#[derive(Clone, Debug, Serialize)]
+#[serde(untagged)]
+pub enum SolverReport {
+    /// The coupled bases, eq. (7).
+    Coupled(CoupledReport),
+    /// The completion method, eqs. (8)–(11).
+    Completion(completion::SolverReport),
+}
+
+impl SolverReport {
+    /// Iterations the solver did.
+    pub fn iterations(&self) -> usize {
+        match self {
+            SolverReport::Coupled(r) => r.iterations,
+            SolverReport::Completion(r) => r.iterations(),
+        }
+    }
+}
+
+/// One stage of a run and its wall time.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct StageTime<'a> {
+    /// The stage's name.
+    pub stage: &'a str,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+}
+
+/// The axiomatic method's candidates and the one chosen.
+#[derive(Clone, Debug, Serialize)]
+pub struct CandidateChoice<'a> {
+    /// Every candidate and its scores.
+    pub candidates: &'a [axiomatic::Candidate],
+    /// Index of the chosen candidate.
+    pub chosen: usize,
+}
+
+/// The serializable record of a run, with the sizes and options it ran with (the bulk of the
+/// `report.json` of `funcorr match`, which adds the input files).
+#[derive(Clone, Debug, Serialize)]
+pub struct MatchReport<'a> {
+    /// Vertices of X.
+    pub n: usize,
+    /// Vertices of Y.
+    pub m: usize,
+    /// Number of data functions.
+    pub q: usize,
+    /// The options of the run.
+    pub options: &'a MatchOptions,
+    /// Eigenpairs computed per shape.
+    pub basis_size: usize,
+    /// Size (rows) of the final functional map.
+    pub final_k: usize,
+    /// The solver's report (methods that iterate).
+    pub solver: Option<&'a SolverReport>,
+    /// The axiomatic method's candidates.
+    pub candidates: Option<CandidateChoice<'a>>,
+    /// The stages in order.
+    pub stages: Vec<StageTime<'a>>,
+}
+
 /// What [`run`] produced.
 #[derive(Clone, Debug)]
 pub struct MatchResult {
@@ -186,12 +262,37 @@ pub struct MatchResult {
     pub coefficients: Option<(Mat<f64>, Mat<f64>)>,
     /// The completion method's factors (L: m × r, R: n × r) with T = L Rᵀ.
     pub factors: Option<(Mat<f64>, Mat<f64>)>,
-    /// The solver's report (JSON), for the completion method and the coupled bases.
-    pub solver: serde_json::Value,
+    /// The solver's report, for the completion method and the coupled bases.
+    pub solver: Option<SolverReport>,
     /// (stage, seconds) in order.
     pub stages: Vec<(String, f64)>,
     /// The axiomatic method's candidates and the index of the chosen one.
     pub candidates: Option<(Vec<axiomatic::Candidate>, usize)>,
+}
+
+impl MatchResult {
+    /// The record of this run on shapes of n and m vertices with q data functions, `basis_size`
+    /// eigenpairs per shape and the options `opts` it ran with.
+    pub fn report<'a>(
+        &'a self,
+        opts: &'a MatchOptions,
+        n: usize,
+        m: usize,
+        q: usize,
+        basis_size: usize,
+    ) -> MatchReport<'a> {
+        MatchReport {
+            n,
+            m,
+            q,
+            options: opts,
+            basis_size,
+            final_k: self.c.nrows(),
+            solver: self.solver.as_ref(),
+            candidates: self.candidates.as_ref().map(|(c, i)| CandidateChoice { candidates: c, chosen: *i }),
+            stages: self.stages.iter().map(|(s, t)| StageTime { stage: s, seconds: *t }).collect(),
+        }
+    }
 }
 
 /// Point maps X → Y (length n) and Y → X (length m).
@@ -273,7 +374,7 @@ fn run_with_gradients(
     }
     let (phi, psi) = (bx.eigenvectors.as_ref(), by.eigenvectors.as_ref());
     let mut stages = Vec::new();
-    let mut solver = serde_json::Value::Null;
+    let mut solver = None;
     let (mut coefficients, mut factors) = (None, None);
     let ovs = OvsjanikovOptions { commutativity: opts.commutativity };
     // The method: a functional map and, for completion, a point map of its own.
@@ -288,9 +389,12 @@ fn run_with_gradients(
         Method::Coupled => {
             let (c, info) =
                 timed(&mut stages, "functional map", || fmap::coupled(bx, by, f, g, opts.k, &opts.coupled))?;
-            solver = serde_json::json!({
-                "iterations": info.iterations, "data": info.data, "off_x": info.off_x, "off_y": info.off_y,
-            });
+            solver = Some(SolverReport::Coupled(CoupledReport {
+                iterations: info.iterations,
+                data: info.data,
+                off_x: info.off_x,
+                off_y: info.off_y,
+            }));
             (c, None)
         }
         Method::Completion => {
@@ -303,7 +407,7 @@ fn run_with_gradients(
                 completion::solve_with_prior(bx, by, laplacians, f, g, c0.as_ref(), &opts.completion, prior.as_ref())
             })?;
             let maps = timed(&mut stages, "extraction", || extract(&s, bx, by, opts.extraction))?;
-            solver = s.report.clone();
+            solver = Some(SolverReport::Completion(s.report.clone()));
             coefficients = s.coefficients.clone();
             factors = Some((s.left.clone(), s.right.clone()));
             (s.c, Some(maps))
@@ -372,7 +476,7 @@ pub fn run_prepared(
         c_method: r.c_fit.transpose().to_owned(),
         coefficients: None,
         factors: None,
-        solver: serde_json::Value::Null,
+        solver: None,
         stages,
         candidates: Some((r.candidates, r.chosen)),
     })
