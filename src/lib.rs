@@ -33,6 +33,7 @@ pub mod laplacian;
 pub mod linalg;
 pub mod matching;
 pub mod operators;
+pub mod optim;
 pub mod pointwise;
 pub mod prepared;
 pub mod primitives;
