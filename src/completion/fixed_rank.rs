@@ -15,13 +15,15 @@
 //! - Line search: backtracking with sufficient decrease (Armijo) from Nocedal's initial step
 //!   2 (f_k − f_{k−1}) / φ'(0); conjugate directions by Polak–Ribière+ with restarts.
 //!
+//! The algorithm is [`crate::optim::rcg`]; this module supplies the manifold (a private
+//! implementation of [`crate::optim::Manifold`]) and the objective.
+//!
 //! The objective only has to provide f at X = L Rᵀ and the products Z·P_R, Zᵀ·P_L of its
 //! Euclidean gradient ([`RankObjective`]), so X is never formed when r × c is large: the
 //! vertex-space form (8) runs on m × n matrices through [`super::full::FullProblem`], the
 //! subspace form on the k' × k' map C through [`super::Problem`].
 
 use crate::linalg::frob;
-use std::time::Instant;
 
 use faer::{Mat, MatRef};
 
@@ -30,6 +32,7 @@ use super::lbfgs::{CompletionReport, OptimizeOptions};
 use super::objective::{gradient_c, value, CompletionParams, Terms};
 use super::{gemm_nn, gemm_tn, mul, Problem};
 use crate::error::{Error, Result};
+use crate::optim::{self, rcg, Beta, Manifold, RcgLineSearch, RcgOptions, Stop, StopRule};
 
 /// An objective on r × c matrices for the fixed-rank solver.
 pub trait RankObjective {
@@ -235,10 +238,69 @@ fn retract(x: &RankPoint, eta: &Tangent, t: f64) -> Result<RankPoint> {
     RankPoint::from_factors(l.as_ref(), rr.as_ref(), k)
 }
 
+/// The manifold of r × c matrices of rank k (points [`RankPoint`], tangent vectors
+/// [`Tangent`], Euclidean gradients given by their products Z V (r × k) and Zᵀ U (c × k)).
+struct FixedRank;
+
+impl Manifold for FixedRank {
+    type Point = RankPoint;
+    type Tangent = Tangent;
+    type Ambient = (Mat<f64>, Mat<f64>);
+    fn inner(&self, _: &RankPoint, u: &Tangent, v: &Tangent) -> f64 {
+        u.inner(v)
+    }
+    fn scale(&self, v: &Tangent, a: f64) -> Tangent {
+        v.scaled(a)
+    }
+    fn add_scaled(&self, v: &Tangent, a: f64, w: &Tangent) -> Tangent {
+        v.add_scaled(a, w)
+    }
+    fn project(&self, x: &RankPoint, (hv, htu): (Mat<f64>, Mat<f64>)) -> Tangent {
+        project(x, hv, htu)
+    }
+    fn retract(&self, x: &RankPoint, v: &Tangent, t: f64) -> Result<RankPoint> {
+        retract(x, v, t)
+    }
+    fn transport(&self, from: &RankPoint, v: &Tangent, to: &RankPoint) -> Tangent {
+        transport(from, v, to)
+    }
+    fn point_norm(&self, x: &RankPoint) -> f64 {
+        x.s.iter().map(|s| s * s).sum::<f64>().sqrt()
+    }
+}
+
+/// A [`RankObjective`] as an objective of the Riemannian CG.
+struct OnManifold<'a>(&'a dyn RankObjective);
+
+impl optim::Objective<FixedRank> for OnManifold<'_> {
+    type Value = Terms;
+    fn value(&mut self, x: &RankPoint) -> Terms {
+        self.0.value(x.left().as_ref(), x.v.as_ref())
+    }
+    fn gradient(&mut self, x: &RankPoint) -> (Terms, (Mat<f64>, Mat<f64>)) {
+        let (t, zv, ztu) = self.0.egrad(x.left().as_ref(), x.v.as_ref(), x.u.as_ref(), x.v.as_ref());
+        (t, (zv, ztu))
+    }
+}
+
+/// The Riemannian CG of the module documentation with the tolerances and line-search budget of
+/// `opts`: Polak–Ribière⁺ (expanded form), the interpolating backtracking line search, retry
+/// along the negative gradient.
+fn rcg_options(opts: &OptimizeOptions) -> RcgOptions {
+    RcgOptions {
+        max_iterations: opts.max_iterations,
+        beta: Beta::PolakRibiereExpanded,
+        line_search: RcgLineSearch::Interpolating { max_evaluations: opts.max_line_search, c1: opts.c1 },
+        stop: StopRule::Tolerances { rel_tol: opts.rel_tol, grad_tol: opts.grad_tol },
+        retry_steepest_descent: true,
+    }
+}
+
 /// Minimizes `obj` over rank-k matrices from `x0` by Riemannian conjugate gradients (module
-/// documentation). The objective is non-increasing (every step satisfies sufficient decrease).
-/// Stops on relative objective change ≤ `rel_tol`, on ‖grad f‖ ≤ `grad_tol`·‖grad f(x₀)‖, at
-/// the iteration cap, or when the line search finds no decrease along the gradient.
+/// documentation; [`crate::optim::rcg::minimize`]). The objective is non-increasing (every step
+/// satisfies sufficient decrease). Stops on relative objective change ≤ `rel_tol`, on
+/// ‖grad f‖ ≤ `grad_tol`·‖grad f(x₀)‖, at the iteration cap, or when the line search finds no
+/// decrease along the gradient. `memory` and `c2` of `opts` are not used.
 pub fn minimize(
     obj: &dyn RankObjective,
     x0: RankPoint,
@@ -252,103 +314,17 @@ pub fn minimize(
             format!("the start is {}×{} of rank {k} but the problem is {r}×{c}", x0.u.nrows(), x0.v.nrows()),
         ));
     }
-    let start = Instant::now();
-    let mut evaluations = 0usize;
-    let mut grad_at = |x: &RankPoint| -> (Terms, Tangent) {
-        evaluations += 1;
-        let (t, zv, ztu) = obj.egrad(x.left().as_ref(), x.v.as_ref(), x.u.as_ref(), x.v.as_ref());
-        (t, project(x, zv, ztu))
-    };
-    let mut x = x0;
-    let (t0, mut g) = grad_at(&x);
-    if !t0.total.is_finite() {
+    let min = rcg::minimize(&FixedRank, &mut OnManifold(obj), x0, &rcg_options(opts))?;
+    if !min.initial.total.is_finite() {
         return Err(Error::numerical("fixed rank", "the objective is not finite at the initialization"));
     }
-    let initial_terms = t0.clone();
-    let mut terms = t0;
-    let mut f = terms.total;
-    let g0_norm = g.inner(&g).sqrt();
-    let mut eta = g.scaled(-1.0);
-    let mut history = vec![f];
-    let mut iterations = 0;
-    let mut line_evals = 0usize;
-    let (mut converged, mut stop_reason) = (false, String::from("iteration cap reached"));
-    if g0_norm == 0.0 {
-        converged = true;
-        stop_reason = "zero gradient at the initialization".into();
-    }
-    let mut f_prev: Option<f64> = None;
-    while !converged && iterations < opts.max_iterations {
-        let gg = g.inner(&g);
-        let mut d0 = g.inner(&eta);
-        if d0.is_nan() || d0 >= 0.0 {
-            eta = g.scaled(-1.0);
-            d0 = -gg;
-        }
-        let eta_norm = eta.inner(&eta).sqrt();
-        // Initial step: Nocedal's 2 (f_k − f_{k−1}) / φ'(0), or a step of length ‖X‖/10 first.
-        let xnorm = x.s.iter().map(|s| s * s).sum::<f64>().sqrt().max(1e-300);
-        let mut t = match f_prev {
-            Some(fp) if fp > f => (2.0 * (fp - f) / -d0).min(10.0 * xnorm / eta_norm),
-            _ => 0.1 * xnorm / eta_norm,
-        };
-        let mut accepted: Option<(RankPoint, f64)> = None;
-        for _ in 0..opts.max_line_search {
-            let y = retract(&x, &eta, t)?;
-            line_evals += 1;
-            let fy = obj.value(y.left().as_ref(), y.v.as_ref()).total;
-            if fy.is_finite() && fy <= f + opts.c1 * t * d0 {
-                accepted = Some((y, fy));
-                break;
-            }
-            // Quadratic interpolation of φ(t), safeguarded to [0.1 t, 0.5 t].
-            let denom = 2.0 * (fy - f - d0 * t);
-            let tq = if fy.is_finite() && denom > 0.0 { -d0 * t * t / denom } else { 0.5 * t };
-            t = tq.clamp(0.1 * t, 0.5 * t);
-        }
-        let Some((y, _)) = accepted else {
-            if d0 != -gg {
-                // Retry along the negative gradient before giving up.
-                eta = g.scaled(-1.0);
-                continue;
-            }
-            stop_reason = "line search found no decrease along the negative gradient".into();
-            break;
-        };
-        let (ty, gy) = grad_at(&y);
-        // Polak–Ribière+ with the transported previous gradient and direction.
-        let g_old = transport(&x, &g, &y);
-        let eta_old = transport(&x, &eta, &y);
-        let beta = ((gy.inner(&gy) - gy.inner(&g_old)) / gg).max(0.0);
-        eta = gy.scaled(-1.0).add_scaled(beta, &eta_old);
-        f_prev = Some(f);
-        let f_old = f;
-        x = y;
-        g = gy;
-        terms = ty;
-        f = terms.total;
-        iterations += 1;
-        history.push(f);
-        if let Some(reason) = opts.converged(f_old, f, g.inner(&g).sqrt(), g0_norm) {
-            converged = true;
-            stop_reason = reason;
-        }
-    }
-    let seconds = start.elapsed().as_secs_f64();
-    let report = CompletionReport {
-        iterations,
-        evaluations: evaluations + line_evals,
-        converged,
-        stop_reason,
-        initial_terms,
-        terms,
-        objective_history: history,
-        gradient_norm_initial: g0_norm,
-        gradient_norm_final: g.inner(&g).sqrt(),
-        seconds_total: seconds,
-        seconds_per_iteration: seconds / iterations.max(1) as f64,
+    let reason = match min.report.stop {
+        Stop::ZeroGradient => "zero gradient at the initialization".to_string(),
+        Stop::LineSearchFailed => "line search found no decrease along the negative gradient".to_string(),
+        stop => stop.to_string(),
     };
-    Ok((x, report))
+    let report = CompletionReport::new(&min, reason);
+    Ok((min.x, report))
 }
 
 #[cfg(test)]

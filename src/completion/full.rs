@@ -342,7 +342,8 @@ pub(crate) fn low_norm_objective(
     (dy, dx): (&[f64], &[f64]),
     x: &[f64],
     k: usize,
-) -> (Terms, Vec<f64>) {
+    grad: &mut [f64],
+) -> Terms {
     let (m, n) = (problem.m(), problem.n());
     let u = unscale_rows(dy, MatRef::from_column_major_slice(&x[..m * k], m, k));
     let v = unscale_rows(dx, MatRef::from_column_major_slice(&x[m * k..], n, k));
@@ -355,13 +356,17 @@ pub(crate) fn low_norm_objective(
         gu += &lu;
         gv += &lv;
     }
-    let mut g = Vec::with_capacity(x.len());
+    let mut at = 0;
     for (mat, d) in [(&gu, dy), (&gv, dx)] {
         for j in 0..k {
-            g.extend(mat.col_as_slice(j).iter().zip(d).map(|(v, d)| v / d));
+            let col = mat.col_as_slice(j);
+            for (o, (v, d)) in grad[at..at + col.len()].iter_mut().zip(col.iter().zip(d)) {
+                *o = v / d;
+            }
+            at += col.len();
         }
     }
-    (terms, g)
+    terms
 }
 
 #[cfg(test)]
@@ -431,12 +436,13 @@ pub(crate) mod tests {
             .collect();
         let ones = (vec![1.0; m], vec![1.0; n]);
         let met = (ones.0.as_slice(), ones.1.as_slice());
-        let (t, g) = low_norm_objective(p, params, met, &x, k);
+        let mut g = vec![0.0; x.len()];
+        let t = low_norm_objective(p, params, met, &x, k, &mut g);
         let d: Vec<f64> = randn(x.len(), 1, seed + 2).col_as_slice(0).to_vec();
         let h = 1e-6;
         let at = |s: f64| {
             let y: Vec<f64> = x.iter().zip(&d).map(|(a, b)| a + s * b).collect();
-            low_norm_objective(p, params, met, &y, k).0.total
+            low_norm_objective(p, params, met, &y, k, &mut vec![0.0; y.len()]).total
         };
         let fd = (at(h) - at(-h)) / (2.0 * h);
         let an: f64 = g.iter().zip(&d).map(|(a, b)| a * b).sum();

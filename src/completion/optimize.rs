@@ -12,15 +12,22 @@ use crate::error::{Error, Result};
 
 /// x = (vec A, vec B), column-major.
 pub(crate) fn pack(a: MatRef<f64>, b: MatRef<f64>) -> Vec<f64> {
-    let mut x = Vec::with_capacity(2 * a.nrows() * a.ncols());
+    let mut x = vec![0.0; 2 * a.nrows() * a.ncols()];
+    pack_into(a, b, &mut x);
+    x
+}
+
+/// Writes (vec A, vec B), column-major, into `x` (length 2 · rows · cols).
+fn pack_into(a: MatRef<f64>, b: MatRef<f64>, x: &mut [f64]) {
+    let mut at = 0;
     for m in [a, b] {
         for j in 0..m.ncols() {
             for i in 0..m.nrows() {
-                x.push(m[(i, j)]);
+                x[at] = m[(i, j)];
+                at += 1;
             }
         }
     }
-    x
 }
 
 pub(crate) fn unpack(x: &[f64], kp: usize, k: usize) -> (Mat<f64>, Mat<f64>) {
@@ -58,10 +65,11 @@ pub fn optimize(
         return Err(Error::invalid("k", format!("k = {} exceeds k' = {kp}", a0.ncols())));
     }
     let k = a0.ncols();
-    let mut eval = |x: &[f64]| {
+    let mut eval = |x: &[f64], grad: &mut [f64]| {
         let (a, b) = unpack(x, kp, k);
         let e = evaluate(problem, params, a.as_ref(), b.as_ref());
-        (e.terms, pack(e.grad_a.as_ref(), e.grad_b.as_ref()))
+        pack_into(e.grad_a.as_ref(), e.grad_b.as_ref(), grad);
+        e.terms
     };
     let (x, report) = lbfgs::minimize(pack(a0, b0), opts, &mut eval)?;
     let (a, b) = unpack(&x, kp, k);

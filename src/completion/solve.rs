@@ -406,7 +406,7 @@ pub fn low_norm(
             x0.extend((0..mat.nrows()).map(|i| d[i] * mat[(i, j)]));
         }
     }
-    let mut eval = |x: &[f64]| low_norm_objective(problem, params, (&dy, &dx), x, k);
+    let mut eval = |x: &[f64], grad: &mut [f64]| low_norm_objective(problem, params, (&dy, &dx), x, k, grad);
     let (x, report) = lbfgs::minimize(x0, opts, &mut eval)?;
     let u = Mat::from_fn(m, k, |i, j| x[j * m + i] / dy[i]);
     let v = Mat::from_fn(n, k, |i, j| x[m * k + j * n + i] / dx[i]);
