@@ -12,7 +12,8 @@
 //! - off term O(P) = off(S), S = Pᵀ Λ P symmetric: O = ‖S‖² − Σᵢ sᵢᵢ², dO = 2⟨off(S), dS⟩ and
 //!   dS = dPᵀ Λ P + Pᵀ Λ dP, so dO = 4⟨Λ P off(S), dP⟩ and ∇ O = 4 Λ P off(S).
 //!
-//! Optimizer: Riemannian conjugate gradient (Polak–Ribière⁺) on O(k) × O(k). The Riemannian
+//! Optimizer: Riemannian conjugate gradient (Polak–Ribière⁺) on O(k) × O(k) ([`crate::optim::rcg`],
+//! this module supplies the manifold and the objective). The Riemannian
 //! gradient is the projection of the Euclidean one onto the tangent space, G − P sym(PᵀG); the
 //! previous direction is transported by the same projection; the retraction is the QR
 //! decomposition of P + ξ with a positive diagonal of R; the step satisfies the Armijo condition
@@ -36,6 +37,7 @@ use faer::Mat;
 use super::{mul, Problem};
 use crate::descriptors::Descriptors;
 use crate::error::{Error, Result};
+use crate::optim::{self, rcg, Beta, Manifold, RcgLineSearch, RcgOptions, Stop, StopRule};
 use crate::spectral::Basis;
 
 /// Options of [`coupled`].
@@ -106,7 +108,7 @@ pub fn coupled(
             1.0
         }
     });
-    let (p, q, iterations) = minimize(&obj, p0, q0, opts.max_iterations, opts.tol);
+    let (p, q, iterations) = minimize(&obj, p0, q0, opts.max_iterations, opts.tol)?;
     let pa = mul(p.transpose(), pr.a.as_ref());
     let qb = mul(q.transpose(), pr.b.as_ref());
     let diagonal: Vec<f64> = (0..k)
@@ -153,6 +155,7 @@ fn off_term(lambda: &[f64], p: &Mat<f64>) -> (f64, Mat<f64>) {
     (value, grad)
 }
 
+#[derive(Clone)]
 struct Objective<'a> {
     pr: &'a Problem,
     mu1: f64,
@@ -197,67 +200,71 @@ fn inner(a: &Mat<f64>, b: &Mat<f64>) -> f64 {
     (0..a.ncols()).map(|j| (0..a.nrows()).map(|i| a[(i, j)] * b[(i, j)]).sum::<f64>()).sum()
 }
 
-/// Riemannian CG on O(k) × O(k); returns (P, Q, iterations).
+/// O(k) × O(k) with the Euclidean metric ⟨(U, V), (U', V')⟩ = ⟨U, U'⟩ + ⟨V, V'⟩: projection
+/// [`project`] and QR retraction [`retract`] on each factor, transport by projection.
+struct Orthogonal2;
+
+type Pair = (Mat<f64>, Mat<f64>);
+
+impl Manifold for Orthogonal2 {
+    type Point = Pair;
+    type Tangent = Pair;
+    type Ambient = Pair;
+    fn inner(&self, _: &Pair, u: &Pair, v: &Pair) -> f64 {
+        inner(&u.0, &v.0) + inner(&u.1, &v.1)
+    }
+    fn scale(&self, v: &Pair, a: f64) -> Pair {
+        (&v.0 * a, &v.1 * a)
+    }
+    fn add_scaled(&self, v: &Pair, a: f64, w: &Pair) -> Pair {
+        (&v.0 + &(&w.0 * a), &v.1 + &(&w.1 * a))
+    }
+    fn project(&self, x: &Pair, g: Pair) -> Pair {
+        (project(&x.0, &g.0), project(&x.1, &g.1))
+    }
+    fn retract(&self, x: &Pair, v: &Pair, t: f64) -> Result<Pair> {
+        Ok((retract(&x.0, &v.0, t), retract(&x.1, &v.1, t)))
+    }
+    fn transport(&self, _: &Pair, v: &Pair, to: &Pair) -> Pair {
+        self.project(to, v.clone())
+    }
+    fn point_norm(&self, x: &Pair) -> f64 {
+        (inner(&x.0, &x.0) + inner(&x.1, &x.1)).sqrt()
+    }
+}
+
+impl optim::Objective<Orthogonal2> for Objective<'_> {
+    type Value = f64;
+    fn value(&mut self, x: &Pair) -> f64 {
+        self.eval(&x.0, &x.1).0
+    }
+    fn gradient(&mut self, x: &Pair) -> (f64, Pair) {
+        let (e, gp, gq) = self.eval(&x.0, &x.1);
+        (e, (gp, gq))
+    }
+}
+
+/// Riemannian CG on O(k) × O(k) (module documentation; [`crate::optim::rcg`] with
+/// Polak–Ribière⁺, halving from twice the previous step, no retry); returns (P, Q, iterations),
+/// the iterations counting a last one whose line search failed.
 fn minimize(
     obj: &Objective,
-    mut p: Mat<f64>,
-    mut q: Mat<f64>,
+    p: Mat<f64>,
+    q: Mat<f64>,
     max_iter: usize,
     tol: f64,
-) -> (Mat<f64>, Mat<f64>, usize) {
-    let (mut e, gp, gq) = obj.eval(&p, &q);
-    let (mut rp, mut rq) = (project(&p, &gp), project(&q, &gq));
-    let (mut dp, mut dq) = (-&rp, -&rq);
-    let mut step = 1.0;
-    let mut small = 0;
-    let mut iterations = 0;
-    while iterations < max_iter {
-        let gnorm2 = inner(&rp, &rp) + inner(&rq, &rq);
-        if gnorm2 == 0.0 || !gnorm2.is_finite() {
-            break;
-        }
-        let mut slope = inner(&rp, &dp) + inner(&rq, &dq);
-        if slope >= 0.0 {
-            dp = -&rp;
-            dq = -&rq;
-            slope = -gnorm2;
-        }
-        // Armijo backtracking.
-        let mut t = 2.0 * step;
-        let mut accepted = None;
-        for _ in 0..60 {
-            let (np, nq) = (retract(&p, &dp, t), retract(&q, &dq, t));
-            let (ne, ngp, ngq) = obj.eval(&np, &nq);
-            if ne.is_finite() && ne <= e + 1e-4 * t * slope {
-                accepted = Some((np, nq, ne, ngp, ngq));
-                break;
-            }
-            t *= 0.5;
-        }
-        iterations += 1;
-        let Some((np, nq, ne, ngp, ngq)) = accepted else { break };
-        step = t;
-        let decrease = e - ne;
-        let (nrp, nrq) = (project(&np, &ngp), project(&nq, &ngq));
-        // Polak–Ribière⁺ with the previous gradient and direction transported by projection.
-        let (tp, tq) = (project(&np, &rp), project(&nq, &rq));
-        let (dtp, dtq) = (project(&np, &dp), project(&nq, &dq));
-        let num = inner(&nrp, &(&nrp - &tp)) + inner(&nrq, &(&nrq - &tq));
-        let beta = (num / gnorm2).max(0.0);
-        dp = &dtp * beta - &nrp;
-        dq = &dtq * beta - &nrq;
-        (p, q, e, rp, rq) = (np, nq, ne, nrp, nrq);
+) -> Result<(Mat<f64>, Mat<f64>, usize)> {
+    let opts = RcgOptions {
+        max_iterations: max_iter,
+        beta: Beta::PolakRibiere,
+        line_search: RcgLineSearch::Halving { max_trials: 60, c1: 1e-4 },
         // E is dimensionless (relative residual): below 1e-12 its changes carry no information.
-        if decrease <= tol * e.abs().max(1e-12) {
-            small += 1;
-            if small >= 2 {
-                break;
-            }
-        } else {
-            small = 0;
-        }
-    }
-    (p, q, iterations)
+        stop: StopRule::SmallDecrease { tol, floor: 1e-12, repeats: 2 },
+        retry_steepest_descent: false,
+    };
+    let min = rcg::minimize(&Orthogonal2, &mut obj.clone(), (p, q), &opts)?;
+    let iterations = min.report.iterations + usize::from(min.report.stop == Stop::LineSearchFailed);
+    Ok((min.x.0, min.x.1, iterations))
 }
 
 #[cfg(test)]
@@ -317,7 +324,7 @@ mod tests {
         let k = 8;
         let (p0, q0) = (Mat::<f64>::identity(k, k), Mat::<f64>::identity(k, k));
         let e0 = obj.eval(&p0, &q0).0;
-        let (p, q, iters) = minimize(&obj, p0, q0, 5000, 1e-14);
+        let (p, q, iters) = minimize(&obj, p0, q0, 5000, 1e-14).unwrap();
         let (e, gp, gq) = obj.eval(&p, &q);
         let (rp, rq) = (project(&p, &gp), project(&q, &gq));
         let gnorm = (inner(&rp, &rp) + inner(&rq, &rq)).sqrt();
