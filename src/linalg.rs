@@ -34,6 +34,12 @@ pub fn frob(x: MatRef<f64>, y: MatRef<f64>) -> f64 {
     (0..x.ncols()).map(|j| (0..x.nrows()).map(|i| x[(i, j)] * y[(i, j)]).sum::<f64>()).sum()
 }
 
+/// x · y = Σ x_i y_i of two vectors of the same length (summed in order).
+pub fn dot(x: &[f64], y: &[f64]) -> f64 {
+    debug_assert_eq!(x.len(), y.len());
+    x.iter().zip(y).map(|(a, b)| a * b).sum()
+}
+
 /// How a tall-skinny product splits its n rows into rayon tasks (module documentation).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RowChunks {

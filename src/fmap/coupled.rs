@@ -197,7 +197,7 @@ fn retract(p: &Mat<f64>, xi: &Mat<f64>, t: f64) -> Mat<f64> {
 }
 
 fn inner(a: &Mat<f64>, b: &Mat<f64>) -> f64 {
-    (0..a.ncols()).map(|j| (0..a.nrows()).map(|i| a[(i, j)] * b[(i, j)]).sum::<f64>()).sum()
+    crate::linalg::frob(a.as_ref(), b.as_ref())
 }
 
 /// O(k) × O(k) with the Euclidean metric ⟨(U, V), (U', V')⟩ = ⟨U, U'⟩ + ⟨V, V'⟩: projection

@@ -49,9 +49,7 @@ impl Default for LbfgsOptions {
     }
 }
 
-pub(crate) fn dot(x: &[f64], y: &[f64]) -> f64 {
-    x.iter().zip(y).map(|(a, b)| a * b).sum()
-}
+pub(crate) use crate::linalg::dot;
 
 fn axpy(alpha: f64, x: &[f64], y: &[f64]) -> Vec<f64> {
     x.iter().zip(y).map(|(xi, yi)| yi + alpha * xi).collect()

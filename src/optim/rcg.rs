@@ -315,9 +315,7 @@ mod tests {
     /// transport by projection.
     struct Sphere;
 
-    fn dot(a: &[f64], b: &[f64]) -> f64 {
-        a.iter().zip(b).map(|(x, y)| x * y).sum()
-    }
+    use crate::linalg::dot;
 
     impl Manifold for Sphere {
         type Point = Vec<f64>;

@@ -173,9 +173,7 @@ fn col(m: MatRef<'_, f64>, j: usize) -> &[f64] {
     m.col(j).try_as_col_major().expect("faer matrices are column-major").as_slice()
 }
 
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
+use crate::linalg::dot;
 
 /// Orthonormalizes the block `w` (n × b, already orthogonal to `v`) in place: w = Q β with β
 /// upper triangular (b × b), by modified Gram–Schmidt applied twice. A column that is
