@@ -58,6 +58,12 @@ pub struct PreparedShape {
 }
 
 impl PreparedShape {
+    /// The shape, its Laplacian and its basis: the one side of a pair that data specifications
+    /// ([`crate::descriptors::spec::PairDataSpec::functions`]) read.
+    pub fn parts(&self) -> (&Shape, &Laplacian, &Basis) {
+        (&self.shape, &self.laplacian, &self.basis)
+    }
+
     /// Builds the Laplacian of `shape` (`choice`), its first `k` eigenpairs (through `cache` when
     /// given) and, for meshes and 3-D point clouds, the surface. Errors: a Laplacian that does
     /// not fit the shape (cotangent without faces, a point-cloud Laplacian of non-3-D points),

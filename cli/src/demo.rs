@@ -69,12 +69,9 @@ pub(crate) fn demo_match(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&T
         by.clone(),
         Some(Surface::Mesh),
     );
-    // `--data wks` (the default): pyFM's WKS recipe.
-    let recipe = funcorr::descriptors::signatures::WksRecipe::default();
-    let (f, g) = (
-        funcorr::descriptors::signatures::wks_recipe(bx, &recipe)?,
-        funcorr::descriptors::signatures::wks_recipe(by, &recipe)?,
-    );
+    // `--data wks` (the default): pyFM's WKS recipe, through the one `--data` grammar.
+    let spec: funcorr::descriptors::spec::PairDataSpec = DEFAULT_DATA.parse()?;
+    let (f, g) = spec.functions(px.parts(), py.parts(), &Default::default())?;
     let r = funcorr::matching::run_prepared(&px, &py, &f, &g, &opts)?;
     let (x, y) = (&px.shape, &py.shape);
     let seconds = t.elapsed().as_secs_f64();

@@ -155,9 +155,7 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     let (px, py) = (px?, py?);
     st.parts.extend(stx.parts.into_iter().map(|s| format!("X {s}")));
     st.parts.extend(sty.parts.into_iter().map(|s| format!("Y {s}")));
-    let (f, g) = st.run("data", || {
-        pair_data(&args.data, (&px.shape, &px.laplacian, &px.basis), (&py.shape, &py.laplacian, &py.basis), &args.seg)
-    })?;
+    let (f, g) = st.run("data", || pair_data(&args.data, px.parts(), py.parts(), &args.seg))?;
     let r = funcorr::matching::run_prepared(&px, &py, &f, &g, &opts)?;
     let (x, y, bx, by) = (&px.shape, &py.shape, &px.basis, &py.basis);
     for (name, secs) in &r.stages {

@@ -74,10 +74,6 @@ pub fn pair_data(
             let ys: Vec<usize> = picks.iter().map(|&i| gt.y[i]).collect();
             Ok((desc::landmarks(x.mesh().n_vertices(), &xs)?, desc::landmarks(y.mesh().n_vertices(), &ys)?))
         }
-        _ => {
-            let (px, py) = (&x.prepared, &y.prepared);
-            let (sx, sy) = ((&px.shape, &px.laplacian, &px.basis), (&py.shape, &py.laplacian, &py.basis));
-            spec.functions(sx, sy, &SegmentationOptions::default())
-        }
+        _ => spec.functions(x.prepared.parts(), y.prepared.parts(), &SegmentationOptions::default()),
     }
 }
