@@ -131,9 +131,20 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
+            let e = as_flag(e);
             eprintln!("funcorr: error: {e}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// The library names its parameters (`data`, `view`, ...); on the command line they are flags.
+fn as_flag(e: Error) -> Error {
+    match e {
+        Error::Invalid { what, msg } if ["data", "view", "dataset", "methods"].contains(&what.as_str()) => {
+            Error::invalid(format!("--{what}"), msg)
+        }
+        e => e,
     }
 }
 

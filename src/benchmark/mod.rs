@@ -70,7 +70,7 @@ impl Dataset {
             }
         }
         if shapes.is_empty() {
-            return Err(Error::invalid("--dataset", format!("{} holds no .off, .obj or .ply shape", dir.display())));
+            return Err(Error::invalid("dataset", format!("{} holds no .off, .obj or .ply shape", dir.display())));
         }
         Ok(Dataset { dir: dir.to_path_buf(), shapes })
     }
@@ -184,7 +184,7 @@ mod tests {
         assert_eq!(sig::DEFAULT_COUNT, 100);
         for bad in ["", "wks:", "wks:0", "wks:x", "landmarks:-3", "rich:3", "segments:odd", "mser:x"] {
             let e = p(bad).unwrap_err().to_string();
-            assert!(e.contains("--data"), "{bad}: {e}");
+            assert!(e.contains("invalid data"), "{bad}: {e}");
         }
         assert!(p("rich").unwrap().is_rich() && !p("landmarks:3").unwrap().is_rich());
     }

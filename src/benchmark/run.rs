@@ -134,14 +134,14 @@ pub fn run(
 ) -> Result<Report> {
     let wall = Instant::now();
     if opts.methods.is_empty() {
-        return Err(Error::invalid("--methods", "no method given"));
+        return Err(Error::invalid("methods", "no method given"));
     }
     let mut seen = BTreeSet::new();
     for m in &opts.methods {
         let ok = !m.name.is_empty() && m.name.chars().all(|c| c.is_ascii_alphanumeric() || "-_+.=".contains(c));
         if !ok || !seen.insert(m.name.clone()) {
             return Err(Error::invalid(
-                "--methods",
+                "methods",
                 format!("method name {:?} is empty, repeated or unfit for a file name", m.name),
             ));
         }

@@ -84,7 +84,7 @@ impl PairDataSpec {
     }
 
     /// The spec if it can be computed from two shapes alone ([`PairDataSpec::functions`]); an
-    /// error naming `--data` for the data-set forms (`segments` without files, `landmarks:N`).
+    /// error naming `data` (the CLI's `--data`) for the data-set forms (`segments` without files, `landmarks:N`).
     pub fn standalone(self) -> Result<Self> {
         if !self.needs_dataset() {
             return Ok(self);
@@ -93,13 +93,10 @@ impl PairDataSpec {
             PairDataSpec::DatasetSegments { .. } => "give the label files of both shapes, segments:A,B",
             _ => "give a file of vertex pairs, landmarks:F (a file named by digits is written ./N)",
         };
-        Err(Error::invalid(
-            "--data",
-            format!("'{self}' names the data of a benchmark data set (funcorr bench); {hint}"),
-        ))
+        Err(Error::invalid("data", format!("'{self}' names the data of a benchmark data set (funcorr bench); {hint}")))
     }
 
-    /// The spec if it can be used on every pair of a data set; an error naming `--data` for the
+    /// The spec if it can be used on every pair of a data set; an error naming `data` for the
     /// forms that name files of one pair (`segments:A,B`, `rich:A,B`, `landmarks:F`,
     /// `matrix:F,G`).
     pub fn for_dataset(self) -> Result<Self> {
@@ -108,7 +105,7 @@ impl PairDataSpec {
             | PairDataSpec::Rich(Some(_))
             | PairDataSpec::Landmarks(_)
             | PairDataSpec::Matrix(..) => Err(Error::invalid(
-                "--data",
+                "data",
                 format!(
                     "'{self}' names files of one pair; a data set needs data for every pair: segments, \
                      segments:nonsym, rich, landmarks:N, wks, wks:N, hks:N, wks+hks:N, persistence or mser"
@@ -127,10 +124,10 @@ impl FromStr for PairDataSpec {
     type Err = Error;
 
     /// Parses a spec (see [`PairDataSpec`]'s variants). Errors ([`Error::Invalid`] naming
-    /// `--data`): an unknown kind, a count that is not an integer in 1..=[`MAX_COUNT`], a
+    /// `data`): an unknown kind, a count that is not an integer in 1..=[`MAX_COUNT`], a
     /// missing or empty file name.
     fn from_str(spec: &str) -> Result<Self> {
-        let bad = |msg: String| Error::invalid("--data", format!("'{spec}': {msg}"));
+        let bad = |msg: String| Error::invalid("data", format!("'{spec}': {msg}"));
         let (kind, arg) = match spec.split_once(':') {
             Some((k, a)) => (k, Some(a)),
             None => (spec, None),
@@ -214,7 +211,7 @@ pub type Side<'a> = (&'a Shape, &'a Laplacian, &'a Basis);
 impl PairDataSpec {
     /// The corresponding functions F (n × q) on X and G (m × q) on Y this spec asks for, the
     /// same q columns in the same order on both shapes. `seg` configures the persistence
-    /// segments of `persistence` and `rich`. Errors name the spec (parameter `--data`) or the
+    /// segments of `persistence` and `rich`. Errors name the spec (parameter `data`) or the
     /// file at fault; the data-set forms ([`PairDataSpec::needs_dataset`]) are an error here.
     pub fn functions(
         &self,
@@ -223,7 +220,7 @@ impl PairDataSpec {
         seg: &SegmentationOptions,
     ) -> Result<(Descriptors, Descriptors)> {
         use super::{persistence as pers, signatures as sig};
-        let bad = |msg: String| Error::invalid("--data", format!("'{self}': {msg}"));
+        let bad = |msg: String| Error::invalid("data", format!("'{self}': {msg}"));
         let sigs = |b: &Basis, wks: bool, hks: bool, n: usize| -> Result<Descriptors> {
             let w = if wks { Some(sig::wks(b, n, true)?) } else { None };
             let h = if hks { Some(sig::hks(b, &sig::hks_times(b, n)?, true)?) } else { None };
@@ -355,12 +352,12 @@ mod tests {
         for s in ["segments", "landmarks:3"] {
             assert!(p(s).unwrap().needs_dataset());
             let e = p(s).unwrap().standalone().unwrap_err().to_string();
-            assert!(e.contains("--data") && e.contains("data set"), "{s}: {e}");
+            assert!(e.contains("data") && e.contains("data set"), "{s}: {e}");
         }
         assert_eq!(p("wks").unwrap().standalone().unwrap(), P::WksRecipe);
         for s in ["segments:a,b", "rich:a,b", "landmarks:l.txt", "landmarks:-3", "matrix:f,g"] {
             let e = p(s).unwrap().for_dataset().unwrap_err().to_string();
-            assert!(e.contains("--data") && e.contains("one pair"), "{s}: {e}");
+            assert!(e.contains("data") && e.contains("one pair"), "{s}: {e}");
         }
         for s in ["segments", "rich", "landmarks:3", "wks", "persistence"] {
             assert_eq!(p(s).unwrap().for_dataset().unwrap(), p(s).unwrap());
@@ -381,7 +378,7 @@ mod tests {
             ("", "unknown kind"),
         ] {
             let e = p(s).unwrap_err().to_string();
-            assert!(e.contains("--data") && e.contains(needle), "{s}: {e}");
+            assert!(e.contains("data") && e.contains(needle), "{s}: {e}");
         }
     }
 }

@@ -96,7 +96,7 @@ impl View {
     /// Parses `"azimuth,elevation"` in degrees (e.g. `"30,-10"`; spaces allowed), the syntax of
     /// the `--view` flag. Errors name `--view`.
     pub fn parse(s: &str) -> Result<View> {
-        let bad = |msg: String| Error::invalid("--view", msg);
+        let bad = |msg: String| Error::invalid("view", msg);
         let parts: Vec<&str> = s.split(',').map(str::trim).collect();
         let [a, e] = parts[..] else {
             return Err(bad(format!("{s:?} is not \"azimuth,elevation\" in degrees (e.g. \"30,10\")")));
@@ -104,7 +104,7 @@ impl View {
         let num = |t: &str, name: &str| {
             t.parse::<f64>().map_err(|_| bad(format!("{name} {t:?} in {s:?} is not a number of degrees")))
         };
-        Self::checked(num(a, "azimuth")?, num(e, "elevation")?, "--view")
+        Self::checked(num(a, "azimuth")?, num(e, "elevation")?, "view")
     }
 
     fn checked(azimuth: f64, elevation: f64, what: &str) -> Result<View> {
@@ -855,7 +855,7 @@ mod tests {
         assert_eq!(View::parse(&View::new(-12.5, 3.0).unwrap().to_string()).unwrap(), View::new(-12.5, 3.0).unwrap());
         for bad in ["", "30", "a,b", "1,2,3", "nan,0", "0,inf", "0,91", "0,-90.5", "30;10"] {
             let e = View::parse(bad).unwrap_err();
-            assert!(matches!(&e, Error::Invalid { what, .. } if what == "--view"), "{bad:?}: {e}");
+            assert!(matches!(&e, Error::Invalid { what, .. } if what == "view"), "{bad:?}: {e}");
         }
         assert!(View::new(0.0, 100.0).is_err());
     }
