@@ -288,7 +288,9 @@ g body\nf 1/1/1 3/1/1 5/1/1\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf -4 -6 -1 -3\nusemtl sk
                     ACCEPTED.fetch_add(1, Ordering::Relaxed);
                     None
                 }
-                Err(e) if !e.to_string().contains("--data") => Some(format!("error without the option name: {e}")),
+                Err(e) if !e.to_string().starts_with("invalid data:") => {
+                    Some(format!("error without the parameter name: {e}"))
+                }
                 Err(e) => {
                     record_error(&e);
                     None
