@@ -12,39 +12,9 @@ use crate::error::Result;
 use crate::optim::{self, LbfgsOptions, Minimum, Stop};
 
 /// Options of the completion optimizers ([`super::optimize`], [`minimize`], the Riemannian CG of
-/// the fixed-rank form).
-#[derive(Clone, Debug, Serialize)]
-pub struct OptimizeOptions {
-    /// Iteration cap.
-    pub max_iterations: usize,
-    /// Stop when the relative decrease of the objective in one iteration, (f_old − f)/|f_old|,
-    /// falls to this value or below.
-    pub rel_tol: f64,
-    /// Also stop when ‖∇f‖ ≤ `grad_tol`·‖∇f(x₀)‖.
-    pub grad_tol: f64,
-    /// Number of (s, y) pairs L-BFGS keeps.
-    pub memory: usize,
-    /// Objective evaluations allowed per line search.
-    pub max_line_search: usize,
-    /// Sufficient-decrease constant c1 of the Wolfe conditions.
-    pub c1: f64,
-    /// Curvature constant c2 of the strong Wolfe conditions.
-    pub c2: f64,
-}
-
-impl Default for OptimizeOptions {
-    fn default() -> Self {
-        OptimizeOptions {
-            max_iterations: 300,
-            rel_tol: 1e-6,
-            grad_tol: 1e-10,
-            memory: 10,
-            max_line_search: 25,
-            c1: 1e-4,
-            c2: 0.9,
-        }
-    }
-}
+/// the fixed-rank form): the shared L-BFGS options (the CG reads the iteration cap and the two
+/// tolerances).
+pub type OptimizeOptions = LbfgsOptions;
 
 /// What an optimizer of the completion method did.
 #[derive(Clone, Debug, Serialize)]
@@ -71,21 +41,6 @@ pub struct CompletionReport {
     pub seconds_total: f64,
     /// Wall time per iteration (total / max(iterations, 1)).
     pub seconds_per_iteration: f64,
-}
-
-impl OptimizeOptions {
-    /// The same options for [`crate::optim::lbfgs::minimize`].
-    pub fn lbfgs(&self) -> LbfgsOptions {
-        LbfgsOptions {
-            max_iterations: self.max_iterations,
-            rel_tol: self.rel_tol,
-            grad_tol: self.grad_tol,
-            memory: self.memory,
-            max_line_search: self.max_line_search,
-            c1: self.c1,
-            c2: self.c2,
-        }
-    }
 }
 
 impl optim::Value for Terms {
@@ -127,7 +82,7 @@ pub type Objective<'a> = dyn FnMut(&[f64], &mut [f64]) -> Terms + 'a;
 /// objective change ≤ `rel_tol`, on ‖∇f‖ ≤ `grad_tol`·‖∇f₀‖, at the iteration cap, or when a
 /// line search along steepest descent finds no decrease. Errors when f is not finite at `x0`.
 pub fn minimize(x0: Vec<f64>, opts: &OptimizeOptions, eval: &mut Objective) -> Result<(Vec<f64>, CompletionReport)> {
-    let min = optim::lbfgs::minimize(x0, &opts.lbfgs(), |x: &[f64], grad: &mut [f64]| eval(x, grad))?;
+    let min = optim::lbfgs::minimize(x0, opts, |x: &[f64], grad: &mut [f64]| eval(x, grad))?;
     let reason = match min.report.stop {
         Stop::ZeroGradient => "zero gradient at the start".to_string(),
         stop => stop.to_string(),
