@@ -12,12 +12,6 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 
-/// Query rows per task of the nearest-neighbour search.
-const QUERY_BLOCK: usize = 256;
-
-/// Reference rows per product block of the nearest-neighbour search (256 × 2048 × 4 bytes = 2 MB).
-const REFERENCE_CHUNK: usize = 2048;
-
 /// Exact Euclidean nearest neighbours: for every row of `query` (n × d) the index of the nearest
 /// row of `reference` (m × d); ties go to the smallest index.
 ///
@@ -26,7 +20,7 @@ const REFERENCE_CHUNK: usize = 2048;
 /// exact in any dimension (the embeddings here have d = k up to hundreds, where k-d trees
 /// degenerate to scanning anyway).
 pub fn nearest_neighbors(reference: MatRef<f64>, query: MatRef<f64>) -> Result<Vec<usize>> {
-    best_rows(reference, query, true)
+    crate::spatial::nearest_rows(reference, query)
 }
 
 /// Maximum inner product search: for every row of `query` (n × d) the index of the row of
@@ -35,113 +29,110 @@ pub fn nearest_neighbors(reference: MatRef<f64>, query: MatRef<f64>) -> Result<V
 /// argmax of every column of T, computed in blocks without forming T (blocked GEMM as in
 /// [`nearest_neighbors`]).
 pub fn max_inner_product(reference: MatRef<f64>, query: MatRef<f64>) -> Result<Vec<usize>> {
-    best_rows(reference, query, false)
+    crate::spatial::max_inner_rows(reference, query)
 }
 
-/// Safety factor on the rounding-error bound of the single-precision screen of [`best_rows`].
-const SCREEN_SAFETY: f64 = 4.0;
+/// A coarse point map X → Y given on samples of X, and a partition of Y into cells, which
+/// restrict the search of [`nearest_neighbors_near`] to a neighbourhood of each sample's image.
+#[derive(Clone, Copy, Debug)]
+pub struct CoarseMap<'a> {
+    /// Vertex positions of X, the query shape (n × 3).
+    pub x: &'a [[f64; 3]],
+    /// Vertex positions of Y, the reference shape (m × 3).
+    pub y: &'a [[f64; 3]],
+    /// Sample vertices of X (e.g. farthest-point samples); every vertex of X belongs to the
+    /// cell of its nearest sample (Euclidean).
+    pub samples: &'a [usize],
+    /// The vertex of Y each sample maps to (as many as `samples`).
+    pub images: &'a [usize],
+    /// Cell centres of Y (vertex ids, e.g. farthest-point samples): every vertex of Y belongs
+    /// to the cell of its nearest centre.
+    pub y_cells: &'a [usize],
+}
 
-/// argmin_j (‖r_j‖² − 2 q·r_j) (`euclidean`) or argmax_j q·r_j for every query row.
+/// [`nearest_neighbors`] restricted by a coarse map ("nearest neighbours on vertex samples", for
+/// shapes of 10⁵–10⁶ vertices where the exact O(n·m·d) search is out of reach): every query
+/// vertex i of X, in the cell of sample s, is searched among the vertices of Y in the `cells`
+/// cells of Y nearest to the image of s. Costs O(n · cells · m / #cells · d) instead of
+/// O(n · m · d), plus k-d tree queries in 3-D.
 ///
-/// Two passes, exact in double precision. *Screen:* the products q·r_j in single precision
-/// (one f32 GEMM per block: half the memory traffic and twice the SIMD width of f64), each
-/// with a rigorous bound on its error, |fl₃₂(q·r_j) − q·r_j| ≤ ε ‖q‖ ‖r_j‖ with
-/// ε = 4 (d + 3) u₃₂ (the rounding of q and r_j to f32, and γ_d of a d-term dot product, with a
-/// safety factor 4 for the kernel's summation order; u₃₂ = 2⁻²⁴). A reference row is kept as a
-/// candidate unless its distance, lowered by its bound, exceeds the best distance raised by
-/// its bound; the true optimum is always kept. *Check:* the candidates' distances in f64
-/// (‖r_j‖² − 2 Σ q_c r_jc, summed in order), the smallest wins, ties to the smallest index. The
-/// result is the exact f64 argmin up to the rounding of that last f64 sum (a near-tie below
-/// 1e-15 relative may resolve differently from a blocked f64 GEMM).
-fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Result<Vec<usize>> {
-    let (m, d) = (reference.nrows(), reference.ncols());
-    if query.ncols() != d {
+/// The result equals the exact search whenever each vertex's true nearest row lies in those
+/// cells — for a continuous map, when the coarse map is right and `cells` covers the distance a
+/// vertex's image can lie from its sample's image (the test compares with the exact search).
+/// Rows of `query` (n × d) and `reference` (m × d) are the vertices of X and Y.
+///
+/// Errors: those of [`nearest_neighbors`], mismatched sizes, vertex ids out of range, empty
+/// samples or cells, `cells` = 0.
+pub fn nearest_neighbors_near(
+    reference: MatRef<f64>,
+    query: MatRef<f64>,
+    coarse: &CoarseMap,
+    cells: usize,
+) -> Result<Vec<usize>> {
+    let (n, m) = (query.nrows(), reference.nrows());
+    if coarse.x.len() != n || coarse.y.len() != m {
         return Err(Error::invalid(
-            "embedding",
-            format!("query has dimension {} but reference has {d}", query.ncols()),
+            "coarse map",
+            format!("{} and {} positions for embeddings of {n} and {m} rows", coarse.x.len(), coarse.y.len()),
         ));
     }
-    if m == 0 {
-        return Err(Error::invalid("embedding", "the reference set is empty"));
+    if coarse.samples.is_empty() || coarse.samples.len() != coarse.images.len() || coarse.y_cells.is_empty() {
+        return Err(Error::invalid(
+            "coarse map",
+            format!(
+                "{} samples, {} images, {} cells of Y: need as many images as samples, at least one of each",
+                coarse.samples.len(),
+                coarse.images.len(),
+                coarse.y_cells.len()
+            ),
+        ));
     }
-    let finite = |x: MatRef<f64>| (0..x.ncols()).all(|j| (0..x.nrows()).all(|i| x[(i, j)].is_finite()));
-    if !finite(reference) || !finite(query) {
-        return Err(Error::invalid("embedding", "it contains a non-finite value"));
+    if cells == 0 {
+        return Err(Error::invalid("cells", "must be at least 1"));
     }
-    // Values beyond f32's range cannot be screened in single precision.
-    let max_abs =
-        |x: MatRef<f64>| (0..x.ncols()).flat_map(|j| (0..x.nrows()).map(move |i| x[(i, j)].abs())).fold(0.0, f64::max);
-    if max_abs(reference).max(max_abs(query)) > 1e30 {
-        return Err(Error::invalid("embedding", "a value exceeds 1e30 in magnitude"));
+    if coarse.samples.iter().any(|&v| v >= n) || coarse.images.iter().chain(coarse.y_cells).any(|&v| v >= m) {
+        return Err(Error::invalid("coarse map", "a vertex id is out of range"));
     }
-    let row_sq = |x: MatRef<f64>, j: usize| (0..d).map(|c| x[(j, c)].powi(2)).sum::<f64>();
-    let ref_norm: Vec<f64> = if euclidean { (0..m).map(|j| row_sq(reference, j)).collect() } else { vec![0.0; m] };
-    let ref_len: Vec<f64> = (0..m).map(|j| row_sq(reference, j).sqrt()).collect();
-    let eps = SCREEN_SAFETY * (d as f64 + 3.0) * f32::EPSILON as f64 / 2.0;
-    let reference32 = Mat::<f32>::from_fn(m, d, |i, j| reference[(i, j)] as f32);
-    let n = query.nrows();
-    let starts: Vec<usize> = (0..n).step_by(QUERY_BLOCK).collect();
-    let blocks: Vec<Vec<usize>> = starts
+    if query.ncols() != reference.ncols() {
+        return Err(Error::invalid(
+            "embedding",
+            format!("query has dimension {} but reference has {}", query.ncols(), reference.ncols()),
+        ));
+    }
+    let d = query.ncols();
+    let points = |ids: &[usize], p: &[[f64; 3]]| ids.iter().map(|&v| p[v]).collect::<Vec<[f64; 3]>>();
+    let centres = points(coarse.y_cells, coarse.y);
+    // Members of every cell of X (around a sample) and of Y (around a centre), ascending.
+    let members = |owner: Vec<usize>, count: usize| {
+        let mut lists = vec![Vec::new(); count];
+        for (v, o) in owner.into_iter().enumerate() {
+            lists[o].push(v);
+        }
+        lists
+    };
+    let x_cells = members(crate::spatial::nearest3(&points(coarse.samples, coarse.x), coarse.x), coarse.samples.len());
+    let y_members = members(crate::spatial::nearest3(&centres, coarse.y), centres.len());
+    let near = crate::spatial::nearest_n3(&centres, &points(coarse.images, coarse.y), cells.min(centres.len()));
+    let results: Vec<Vec<(usize, usize)>> = x_cells
         .par_iter()
-        .map(|&r0| {
-            let len = QUERY_BLOCK.min(n - r0);
-            let q = query.subrows(r0, len);
-            let q32 = Mat::<f32>::from_fn(len, d, |i, j| q[(i, j)] as f32);
-            // 2 ε ‖q‖: the bound on the error of −2 q·r_j is this times ‖r_j‖.
-            let scale: Vec<f64> = (0..len).map(|i| 2.0 * eps * row_sq(q, i).sqrt()).collect();
-            // The reference rows in chunks, so that the block of products stays in cache.
-            let mut best_hi = vec![f64::INFINITY; len];
-            let mut cands: Vec<Vec<(f64, usize)>> = vec![Vec::new(); len];
-            let mut dots = Mat::<f32>::zeros(len, REFERENCE_CHUNK.min(m));
-            for c0 in (0..m).step_by(REFERENCE_CHUNK) {
-                let w = REFERENCE_CHUNK.min(m - c0);
-                matmul(
-                    dots.as_mut().subcols_mut(0, w),
-                    Accum::Replace,
-                    q32.as_ref(),
-                    reference32.subrows(c0, w).transpose(),
-                    1.0f32,
-                    Par::Seq,
-                );
-                let dd = dots.as_ref();
-                for j in 0..w {
-                    let col = dd.col(j);
-                    let (rn, rl) = (ref_norm[c0 + j], ref_len[c0 + j]);
-                    for i in 0..len {
-                        let dist = rn - 2.0 * col[i] as f64;
-                        let bound = scale[i] * rl;
-                        if dist - bound <= best_hi[i] {
-                            best_hi[i] = best_hi[i].min(dist + bound);
-                            let list = &mut cands[i];
-                            list.push((dist - bound, c0 + j));
-                            if list.len() >= 64 {
-                                let hi = best_hi[i];
-                                list.retain(|c| c.0 <= hi);
-                            }
-                        }
-                    }
-                }
+        .zip(near.par_iter())
+        .map(|(queries, near_cells)| -> Result<Vec<(usize, usize)>> {
+            if queries.is_empty() {
+                return Ok(Vec::new());
             }
-            (0..len)
-                .map(|i| {
-                    let hi = best_hi[i];
-                    let mut best = (f64::INFINITY, usize::MAX);
-                    for &(lo, j) in &cands[i] {
-                        if lo > hi {
-                            continue;
-                        }
-                        let dot: f64 = (0..d).map(|c| q[(i, c)] * reference[(j, c)]).sum();
-                        let dist = ref_norm[j] - 2.0 * dot;
-                        if dist < best.0 || (dist == best.0 && j < best.1) {
-                            best = (dist, j);
-                        }
-                    }
-                    best.1
-                })
-                .collect()
+            let mut candidates: Vec<usize> = near_cells.iter().flat_map(|&c| y_members[c].iter().copied()).collect();
+            candidates.sort_unstable();
+            let r = Mat::from_fn(candidates.len(), d, |t, c| reference[(candidates[t], c)]);
+            let q = Mat::from_fn(queries.len(), d, |t, c| query[(queries[t], c)]);
+            let best = crate::spatial::nearest_rows(r.as_ref(), q.as_ref())?;
+            Ok(queries.iter().zip(best).map(|(&i, t)| (i, candidates[t])).collect())
         })
-        .collect();
-    Ok(blocks.into_iter().flatten().collect())
+        .collect::<Result<_>>()?;
+    let mut map = vec![0usize; n];
+    for (i, j) in results.into_iter().flatten() {
+        map[i] = j;
+    }
+    Ok(map)
 }
 
 /// Point-to-point map X → Y of a functional map C (k × k, coefficients on X → coefficients on Y)
@@ -482,5 +473,45 @@ mod tests {
         assert!(zoomout(a.as_ref(), a.as_ref(), &[1.0; 5], i2.as_ref(), &bad).is_err());
         let ok = ZoomOutOptions { k_final: 3, step: 1 };
         assert!(zoomout(a.as_ref(), a.as_ref(), &[1.0; 4], i2.as_ref(), &ok).is_err());
+    }
+
+    /// The search near a coarse map equals the exact search when the coarse map is right (a
+    /// 2562-vertex sphere and a renumbered copy, 6-D embeddings with noise, 100 samples, 8
+    /// cells), and differs from it when the coarse map is wrong (so the restriction is real).
+    #[test]
+    fn search_near_a_coarse_map_equals_the_exact_search() {
+        let x = crate::primitives::bumpy_sphere(4);
+        let n = x.n_vertices();
+        let perm: Vec<usize> = (0..n).map(|i| (i * 7919 + 11) % n).collect(); // Y vertex j is X vertex perm[j]
+        let mut truth = vec![0usize; n];
+        for (j, &i) in perm.iter().enumerate() {
+            truth[i] = j;
+        }
+        let px = x.vertices().to_vec();
+        let py: Vec<[f64; 3]> = perm.iter().map(|&i| px[i]).collect();
+        let features = |p: &[f64; 3]| [p[0], p[1], p[2], p[0] * p[1], p[1] * p[2], p[2] * p[0]];
+        let mut rng = crate::rng::Normal::new(5);
+        let query = Mat::from_fn(n, 6, |i, c| features(&px[i])[c]);
+        let reference = Mat::from_fn(n, 6, |j, c| features(&py[j])[c] + 0.02 * rng.sample());
+        let exact = nearest_neighbors(reference.as_ref(), query.as_ref()).unwrap();
+        let mass = vec![1.0; n];
+        let sx = crate::spatial::farthest_point_samples(&px, &mass, 100).unwrap().vertices;
+        let sy = crate::spatial::farthest_point_samples(&py, &mass, 100).unwrap().vertices;
+        let images: Vec<usize> = sx.iter().map(|&s| truth[s]).collect();
+        let coarse = CoarseMap { x: &px, y: &py, samples: &sx, images: &images, y_cells: &sy };
+        let near = nearest_neighbors_near(reference.as_ref(), query.as_ref(), &coarse, 8).unwrap();
+        let agree = |a: &[usize], b: &[usize]| a.iter().zip(b).filter(|(p, q)| p == q).count();
+        assert_eq!(agree(&near, &exact), n);
+        assert!(agree(&exact, &truth) < n, "the noise makes the exact map differ from the truth somewhere");
+        // A wrong coarse map (every sample sent to the image of another) confines the search
+        // to the wrong places.
+        let wrong: Vec<usize> = (0..sx.len()).map(|s| images[(s + sx.len() / 2) % sx.len()]).collect();
+        let coarse = CoarseMap { images: &wrong, ..coarse };
+        let off = nearest_neighbors_near(reference.as_ref(), query.as_ref(), &coarse, 8).unwrap();
+        assert!(agree(&off, &exact) < n / 2, "{}", agree(&off, &exact));
+        // Bad input.
+        assert!(nearest_neighbors_near(reference.as_ref(), query.as_ref(), &coarse, 0).is_err());
+        let short = CoarseMap { images: &wrong[1..], ..coarse };
+        assert!(nearest_neighbors_near(reference.as_ref(), query.as_ref(), &short, 8).is_err());
     }
 }

@@ -70,6 +70,45 @@ pub fn icosphere(subdivisions: u32) -> TriMesh {
     TriMesh::new(v, f).expect("icosphere is valid")
 }
 
+/// One level of midpoint subdivision: every triangle split into four by its edge midpoints.
+/// The surface is unchanged (same area, same embedding), vertex i of `mesh` stays vertex i (so a
+/// ground-truth correspondence of the coarse vertices still holds), and the midpoint of the
+/// e-th edge of [`TriMesh::edges`] becomes vertex n + e: n + #E vertices, 4 #F faces.
+/// Used to build large meshes from the benchmark shapes (BENCHMARKS.md); unlike Loop
+/// subdivision it does not smooth, so distances and areas on the result equal the input's.
+///
+/// Errors: more than 2³² − 1 vertices in the result.
+pub fn midpoint_subdivision(mesh: &TriMesh) -> crate::Result<TriMesh> {
+    let edges = mesh.edges();
+    let n = mesh.n_vertices();
+    if n + edges.len() > u32::MAX as usize {
+        return Err(crate::Error::invalid(
+            "mesh",
+            format!("subdividing {n} vertices and {} edges exceeds 2³² vertices", edges.len()),
+        ));
+    }
+    let v = mesh.vertices();
+    let mut vertices = Vec::with_capacity(n + edges.len());
+    vertices.extend_from_slice(v);
+    for [a, b] in &edges {
+        let (p, q) = (v[*a as usize], v[*b as usize]);
+        vertices.push([(p[0] + q[0]) / 2.0, (p[1] + q[1]) / 2.0, (p[2] + q[2]) / 2.0]);
+    }
+    let mid = |a: u32, b: u32| -> u32 {
+        if a == b {
+            return a; // a face with a repeated vertex stays degenerate
+        }
+        let e = edges.binary_search(&[a.min(b), a.max(b)]).expect("every face edge is in edges()");
+        (n + e) as u32
+    };
+    let mut faces = Vec::with_capacity(4 * mesh.n_faces());
+    for &[a, b, c] in mesh.faces() {
+        let (ab, bc, ca) = (mid(a, b), mid(b, c), mid(c, a));
+        faces.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+    }
+    TriMesh::new(vertices, faces)
+}
+
 /// The unit icosphere pushed out by a smooth radial bump with no symmetry, then stretched
 /// (1.3, 1, 0.9) along the axes: a closed surface whose Laplacian eigenvalues are simple, so
 /// eigenvectors are defined up to sign only — the shape the invariance tests use.
@@ -173,6 +212,29 @@ mod tests {
         // Outward orientation: normals point away from the centre.
         let n = s.vertex_normals();
         assert!(s.vertices().iter().zip(&n).all(|(p, q)| p[0] * q[0] + p[1] * q[1] + p[2] * q[2] > 0.9));
+    }
+
+    /// Midpoint subdivision keeps the area and the coarse vertices, and gives n + #E vertices
+    /// and 4 #F faces (twice: 642 → 2562 → 10242 on the icosphere of level 3, like levels 4, 5).
+    #[test]
+    fn midpoint_subdivision_counts_and_area() {
+        let mut m = bumpy_sphere(3);
+        for _ in 0..2 {
+            let s = midpoint_subdivision(&m).unwrap();
+            assert_eq!(s.n_vertices(), m.n_vertices() + m.edges().len());
+            assert_eq!(s.n_faces(), 4 * m.n_faces());
+            assert_eq!(&s.vertices()[..m.n_vertices()], m.vertices());
+            let (a, b) = (m.total_area(), s.total_area());
+            assert!((a - b).abs() <= 1e-12 * a, "{a} vs {b}");
+            assert_eq!(s.components().0, 1);
+            m = s;
+        }
+        assert_eq!(m.n_vertices(), icosphere(5).n_vertices());
+        // A mesh with a boundary: the rectangle's area and corners are kept.
+        let r = rectangle(2.0, 1.0, 3, 2);
+        let s = midpoint_subdivision(&r).unwrap();
+        assert!((s.total_area() - 2.0).abs() < 1e-12);
+        assert_eq!(s.n_vertices(), r.n_vertices() + r.edges().len());
     }
 
     #[test]

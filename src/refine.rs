@@ -26,7 +26,7 @@ use faer::{Mat, MatRef, Side};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::pointwise::nearest_neighbors;
+use crate::pointwise::{nearest_neighbors, nearest_neighbors_near, CoarseMap};
 use crate::shape::TriMesh;
 // The samples live with the other spatial queries; re-exported for the pipeline
 // (`crate::matching::axiomatic` names them through this module).
@@ -144,6 +144,45 @@ pub fn map_of_pullback_with(
         None => Mat::from_fn(phi.nrows(), kx + d, query_row),
     };
     nearest_neighbors(reference.as_ref(), query.as_ref())
+}
+
+/// Vertex positions of both shapes and a cell count, for computing the point map of every vertex
+/// near a coarse map on samples ([`crate::pointwise::nearest_neighbors_near`]) instead of by the
+/// exact O(n·m·k) search: the final maps of pairs of 10⁵–10⁶ vertices.
+#[derive(Clone, Copy, Debug)]
+pub struct Near<'a> {
+    /// Vertex positions of the query shape X (n × 3).
+    pub x: &'a [[f64; 3]],
+    /// Vertex positions of the reference shape Y (m × 3).
+    pub y: &'a [[f64; 3]],
+    /// Cells of Y searched around the image of each sample of X.
+    pub cells: usize,
+}
+
+impl<'a> Near<'a> {
+    /// The same search in the other direction (Y → X).
+    pub fn reversed(&self) -> Near<'a> {
+        Near { x: self.y, y: self.x, cells: self.cells }
+    }
+}
+
+/// [`map_of_pullback`] of every vertex of X searched near the map of the samples `sx` of X
+/// (exact, each sample against every vertex of Y), among the cells of Y around the vertices
+/// `y_cells` ([`crate::pointwise::nearest_neighbors_near`]). Errors as [`map_of_pullback`] and
+/// [`crate::pointwise::nearest_neighbors_near`].
+pub fn map_of_pullback_near(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    c_yx: MatRef<f64>,
+    sx: &[usize],
+    y_cells: &[usize],
+    near: &Near,
+) -> Result<Vec<usize>> {
+    let images = map_of_pullback(phi, psi, c_yx, Some(sx))?;
+    let (kx, ky) = (c_yx.nrows(), c_yx.ncols());
+    let reference = mul(psi.subcols(0, ky), c_yx.transpose());
+    let coarse = CoarseMap { x: near.x, y: near.y, samples: sx, images: &images, y_cells };
+    nearest_neighbors_near(reference.as_ref(), phi.subcols(0, kx), &coarse, near.cells)
 }
 
 /// Options of [`zoomout`] (the same as [`crate::pointwise::zoomout`]'s).
@@ -298,10 +337,6 @@ fn bijective_map(
     rows: Option<&[usize]>,
     refs: Option<&[usize]>,
 ) -> Result<Vec<usize>> {
-    let k = c_yx.nrows();
-    let (phi, psi) = (phi.subcols(0, k), psi.subcols(0, k));
-    let sw = w.sqrt();
-    let (psi_ct, phi_c, psi_b) = (mul(psi, c_yx.transpose()), mul(phi, c_yx), mul(psi, c_xy));
     let all_y: Vec<usize>;
     let refs = match refs {
         Some(r) => r,
@@ -310,14 +345,6 @@ fn bijective_map(
             &all_y
         }
     };
-    let reference = Mat::from_fn(refs.len(), 3 * k, |t, a| {
-        let j = refs[t];
-        match a / k {
-            0 => psi_ct[(j, a)],
-            1 => psi[(j, a - k)],
-            _ => sw * psi_b[(j, a - 2 * k)],
-        }
-    });
     let all: Vec<usize>;
     let r = match rows {
         Some(r) => r,
@@ -326,12 +353,59 @@ fn bijective_map(
             &all
         }
     };
-    let query = Mat::from_fn(r.len(), 3 * k, |s, a| match a / k {
-        0 => phi[(r[s], a)],
-        1 => phi_c[(r[s], a - k)],
-        _ => sw * phi[(r[s], a - 2 * k)],
-    });
+    let (reference, query) = bijective_embeddings(phi, psi, c_yx, c_xy, w, r, refs);
     Ok(nearest_neighbors(reference.as_ref(), query.as_ref())?.into_iter().map(|t| refs[t]).collect())
+}
+
+/// The embeddings of [`bijective_map`]: the reference rows `refs` of Y and the query rows `rows`
+/// of X (each × 3k), whose squared distance is the map's cost.
+fn bijective_embeddings(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    c_yx: MatRef<f64>,
+    c_xy: MatRef<f64>,
+    w: f64,
+    rows: &[usize],
+    refs: &[usize],
+) -> (Mat<f64>, Mat<f64>) {
+    let k = c_yx.nrows();
+    let (phi, psi) = (phi.subcols(0, k), psi.subcols(0, k));
+    let sw = w.sqrt();
+    let (psi_ct, phi_c, psi_b) = (mul(psi, c_yx.transpose()), mul(phi, c_yx), mul(psi, c_xy));
+    let reference = Mat::from_fn(refs.len(), 3 * k, |t, a| {
+        let j = refs[t];
+        match a / k {
+            0 => psi_ct[(j, a)],
+            1 => psi[(j, a - k)],
+            _ => sw * psi_b[(j, a - 2 * k)],
+        }
+    });
+    let query = Mat::from_fn(rows.len(), 3 * k, |s, a| match a / k {
+        0 => phi[(rows[s], a)],
+        1 => phi_c[(rows[s], a - k)],
+        _ => sw * phi[(rows[s], a - 2 * k)],
+    });
+    (reference, query)
+}
+
+/// [`bijective_map`] of every vertex of X searched near the map of the samples `sx` (exact,
+/// against every vertex of Y), among the cells of Y around `y_cells`.
+#[allow(clippy::too_many_arguments)]
+fn bijective_map_near(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    c_yx: MatRef<f64>,
+    c_xy: MatRef<f64>,
+    w: f64,
+    sx: &[usize],
+    y_cells: &[usize],
+    near: &Near,
+) -> Result<Vec<usize>> {
+    let images = bijective_map(phi, psi, c_yx, c_xy, w, Some(sx), None)?;
+    let (all_x, all_y): (Vec<usize>, Vec<usize>) = ((0..phi.nrows()).collect(), (0..psi.nrows()).collect());
+    let (reference, query) = bijective_embeddings(phi, psi, c_yx, c_xy, w, &all_x, &all_y);
+    let coarse = CoarseMap { x: near.x, y: near.y, samples: sx, images: &images, y_cells };
+    nearest_neighbors_near(reference.as_ref(), query.as_ref(), &coarse, near.cells)
 }
 
 /// One round of the bijective refinement: both point maps on the samples of their shape (each
@@ -414,7 +488,9 @@ pub const POLISH_BIJECTIVITY: f64 = 1.0;
 /// [`POLISH_BIJECTIVITY`]) and both functional maps ([`bijective_fmap`]); then the point map of
 /// every vertex of X with the orthogonality, coupling and bijectivity terms. On every faust_r
 /// pair one round after ZoomOut lowers the mean error on 64 of 97 pairs and raises it on 30, by
-/// at most 0.1 ×100 (EXPERIMENTS.md). Returns (C_yx, map_xy on every vertex of X).
+/// at most 0.1 ×100 (EXPERIMENTS.md). With `near`, the final map of every vertex is searched
+/// near the map of the samples of X, among the cells of Y around its samples
+/// ([`crate::pointwise::nearest_neighbors_near`]). Returns (C_yx, map_xy on every vertex of X).
 pub fn bijective_polish(
     phi: MatRef<f64>,
     psi: MatRef<f64>,
@@ -422,6 +498,7 @@ pub fn bijective_polish(
     sy: &Samples,
     c_yx: MatRef<f64>,
     rounds: usize,
+    near: Option<&Near>,
 ) -> Result<(Mat<f64>, Vec<usize>)> {
     let k = c_yx.nrows();
     if c_yx.ncols() != k || k == 0 || k > phi.ncols() || k > psi.ncols() {
@@ -440,7 +517,10 @@ pub fn bijective_polish(
     for _ in 0..rounds {
         (c_yx, c_xy) = bijective_round(phi, psi, sx, sy, (c_yx.as_ref(), c_xy.as_ref()), k, w, true)?;
     }
-    let map_xy = bijective_map(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, None, None)?;
+    let map_xy = match near {
+        Some(near) => bijective_map_near(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, &sx.vertices, &sy.vertices, near)?,
+        None => bijective_map(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, None, None)?,
+    };
     Ok((c_yx, map_xy))
 }
 
@@ -655,11 +735,11 @@ mod tests {
             farthest_point_samples(x.vertices(), &bx.mass, 300).unwrap(),
             farthest_point_samples(y.vertices(), &by.mass, 300).unwrap(),
         );
-        let (c, map) = bijective_polish(phi, psi, &sx, &sy, noisy.as_ref(), 3).unwrap();
+        let (c, map) = bijective_polish(phi, psi, &sx, &sy, noisy.as_ref(), 3, None).unwrap();
         assert_eq!(c.nrows(), 30);
         let polished = agreement(&map);
         assert!(polished > 0.99 && polished > plain, "polish {polished}, plain read-off {plain}");
-        assert!(bijective_polish(phi, psi, &sx, &sy, noisy.submatrix(0, 0, 30, 20), 1).is_err());
+        assert!(bijective_polish(phi, psi, &sx, &sy, noisy.submatrix(0, 0, 30, 20), 1, None).is_err());
     }
 
     #[test]

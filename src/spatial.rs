@@ -6,6 +6,8 @@
 
 use std::num::NonZero;
 
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, MatRef, Par};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
@@ -40,6 +42,17 @@ pub fn nearest3(points: &[[f64; 3]], queries: &[[f64; 3]]) -> Vec<usize> {
     let tree: kiddo::ImmutableKdTree<f64, 3> = kiddo::ImmutableKdTree::new_from_slice(points);
     let one = NonZero::new(1).expect("1 > 0");
     queries.iter().map(|q| tree.nearest_n::<kiddo::SquaredEuclidean>(q, one)[0].item as usize).collect()
+}
+
+/// For every query point, the indices of the `k` nearest of `points` (Euclidean, by a k-d tree),
+/// nearest first. `points` must not be empty and 1 ≤ k ≤ its length (the caller checks).
+pub fn nearest_n3(points: &[[f64; 3]], queries: &[[f64; 3]], k: usize) -> Vec<Vec<usize>> {
+    let tree: kiddo::ImmutableKdTree<f64, 3> = kiddo::ImmutableKdTree::new_from_slice(points);
+    let want = NonZero::new(k).expect("k ≥ 1");
+    queries
+        .par_iter()
+        .map(|q| tree.nearest_n::<kiddo::SquaredEuclidean>(q, want).into_iter().map(|nn| nn.item as usize).collect())
+        .collect()
 }
 
 /// The K nearest neighbours of every point (excluding itself): for point i, `K` pairs
@@ -111,6 +124,9 @@ pub fn farthest_points(mesh: &TriMesh, candidates: &[usize], count: usize) -> Ve
     chosen
 }
 
+/// Vertex positions of two shapes X (n × 3) and Y (m × 3).
+pub type PositionPair<'a> = (&'a [[f64; 3]], &'a [[f64; 3]]);
+
 /// A weighted subset of the vertices of a shape.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Samples {
@@ -134,6 +150,45 @@ impl Samples {
     /// Whether there are no samples.
     pub fn is_empty(&self) -> bool {
         self.vertices.is_empty()
+    }
+
+    /// `count` independent draws of a vertex with probability ∝ `mass` (length n), duplicates
+    /// merged: each distinct vertex drawn c times gets the weight c · Σ mass / `count`.
+    /// Deterministic in `seed` (SplitMix64).
+    ///
+    /// Unbiased: for any f, E[Σ_s w_s f(v_s)] = Σ_i mass_i f(i), so a sum over the samples is
+    /// an unbiased estimate of the mass-weighted sum over every vertex (a Monte Carlo quadrature;
+    /// [`farthest_point_samples`] is the deterministic one, with smaller error for smooth f).
+    ///
+    /// Errors: no vertices, `count` = 0, a negative or non-finite mass, or a zero total.
+    pub fn random(mass: &[f64], count: usize, seed: u64) -> Result<Samples> {
+        if mass.is_empty() || count == 0 {
+            return Err(Error::invalid("samples", format!("{count} draws from {} vertices", mass.len())));
+        }
+        if mass.iter().any(|m| !(m.is_finite() && *m >= 0.0)) {
+            return Err(Error::invalid("samples", "vertex weights must be finite and ≥ 0"));
+        }
+        let mut cumulative = Vec::with_capacity(mass.len());
+        let mut total = 0.0;
+        for m in mass {
+            total += m;
+            cumulative.push(total);
+        }
+        if total <= 0.0 || !total.is_finite() {
+            return Err(Error::invalid("samples", "vertex weights sum to 0 or overflow"));
+        }
+        let mut rng = crate::rng::Normal::new(seed);
+        let mut hits = vec![0u64; mass.len()];
+        for _ in 0..count {
+            let u = rng.uniform() * total;
+            // The first vertex whose cumulative weight exceeds u (never one of weight 0).
+            let i = cumulative.partition_point(|&c| c <= u).min(mass.len() - 1);
+            hits[i] += 1;
+        }
+        let per_draw = total / count as f64;
+        let vertices: Vec<usize> = (0..mass.len()).filter(|&i| hits[i] > 0).collect();
+        let weights = vertices.iter().map(|&i| hits[i] as f64 * per_draw).collect();
+        Ok(Samples { vertices, weights })
     }
 }
 
@@ -191,6 +246,131 @@ pub fn farthest_point_samples(points: &[[f64; 3]], mass: &[f64], count: usize) -
         weights[owner[i]] += mass[i];
     }
     Ok(Samples { vertices: chosen, weights })
+}
+
+/// Query rows per task of the nearest-neighbour search.
+const QUERY_BLOCK: usize = 256;
+
+/// Reference rows per product block of the nearest-neighbour search (256 × 2048 × 4 bytes = 2 MB).
+const REFERENCE_CHUNK: usize = 2048;
+
+/// Safety factor on the rounding-error bound of the single-precision screen of [`nearest_rows`].
+const SCREEN_SAFETY: f64 = 4.0;
+
+/// argmin_j (‖r_j‖² − 2 q·r_j) (`euclidean`) or argmax_j q·r_j for every query row.
+///
+/// Two passes, exact in double precision. *Screen:* the products q·r_j in single precision
+/// (one f32 GEMM per block: half the memory traffic and twice the SIMD width of f64), each
+/// with a rigorous bound on its error, |fl₃₂(q·r_j) − q·r_j| ≤ ε ‖q‖ ‖r_j‖ with
+/// ε = 4 (d + 3) u₃₂ (the rounding of q and r_j to f32, and γ_d of a d-term dot product, with a
+/// safety factor 4 for the kernel's summation order; u₃₂ = 2⁻²⁴). A reference row is kept as a
+/// candidate unless its distance, lowered by its bound, exceeds the best distance raised by
+/// its bound; the true optimum is always kept. *Check:* the candidates' distances in f64
+/// (‖r_j‖² − 2 Σ q_c r_jc, summed in order), the smallest wins, ties to the smallest index. The
+/// result is the exact f64 argmin up to the rounding of that last f64 sum (a near-tie below
+/// 1e-15 relative may resolve differently from a blocked f64 GEMM).
+fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Result<Vec<usize>> {
+    let (m, d) = (reference.nrows(), reference.ncols());
+    if query.ncols() != d {
+        return Err(Error::invalid(
+            "embedding",
+            format!("query has dimension {} but reference has {d}", query.ncols()),
+        ));
+    }
+    if m == 0 {
+        return Err(Error::invalid("embedding", "the reference set is empty"));
+    }
+    let finite = |x: MatRef<f64>| (0..x.ncols()).all(|j| (0..x.nrows()).all(|i| x[(i, j)].is_finite()));
+    if !finite(reference) || !finite(query) {
+        return Err(Error::invalid("embedding", "it contains a non-finite value"));
+    }
+    // Values beyond f32's range cannot be screened in single precision.
+    let max_abs =
+        |x: MatRef<f64>| (0..x.ncols()).flat_map(|j| (0..x.nrows()).map(move |i| x[(i, j)].abs())).fold(0.0, f64::max);
+    if max_abs(reference).max(max_abs(query)) > 1e30 {
+        return Err(Error::invalid("embedding", "a value exceeds 1e30 in magnitude"));
+    }
+    let row_sq = |x: MatRef<f64>, j: usize| (0..d).map(|c| x[(j, c)].powi(2)).sum::<f64>();
+    let ref_norm: Vec<f64> = if euclidean { (0..m).map(|j| row_sq(reference, j)).collect() } else { vec![0.0; m] };
+    let ref_len: Vec<f64> = (0..m).map(|j| row_sq(reference, j).sqrt()).collect();
+    let eps = SCREEN_SAFETY * (d as f64 + 3.0) * f32::EPSILON as f64 / 2.0;
+    let reference32 = Mat::<f32>::from_fn(m, d, |i, j| reference[(i, j)] as f32);
+    let n = query.nrows();
+    let starts: Vec<usize> = (0..n).step_by(QUERY_BLOCK).collect();
+    let blocks: Vec<Vec<usize>> = starts
+        .par_iter()
+        .map(|&r0| {
+            let len = QUERY_BLOCK.min(n - r0);
+            let q = query.subrows(r0, len);
+            let q32 = Mat::<f32>::from_fn(len, d, |i, j| q[(i, j)] as f32);
+            // 2 ε ‖q‖: the bound on the error of −2 q·r_j is this times ‖r_j‖.
+            let scale: Vec<f64> = (0..len).map(|i| 2.0 * eps * row_sq(q, i).sqrt()).collect();
+            // The reference rows in chunks, so that the block of products stays in cache.
+            let mut best_hi = vec![f64::INFINITY; len];
+            let mut cands: Vec<Vec<(f64, usize)>> = vec![Vec::new(); len];
+            let mut dots = Mat::<f32>::zeros(len, REFERENCE_CHUNK.min(m));
+            for c0 in (0..m).step_by(REFERENCE_CHUNK) {
+                let w = REFERENCE_CHUNK.min(m - c0);
+                matmul(
+                    dots.as_mut().subcols_mut(0, w),
+                    Accum::Replace,
+                    q32.as_ref(),
+                    reference32.subrows(c0, w).transpose(),
+                    1.0f32,
+                    Par::Seq,
+                );
+                let dd = dots.as_ref();
+                for j in 0..w {
+                    let col = dd.col(j);
+                    let (rn, rl) = (ref_norm[c0 + j], ref_len[c0 + j]);
+                    for i in 0..len {
+                        let dist = rn - 2.0 * col[i] as f64;
+                        let bound = scale[i] * rl;
+                        if dist - bound <= best_hi[i] {
+                            best_hi[i] = best_hi[i].min(dist + bound);
+                            let list = &mut cands[i];
+                            list.push((dist - bound, c0 + j));
+                            if list.len() >= 64 {
+                                let hi = best_hi[i];
+                                list.retain(|c| c.0 <= hi);
+                            }
+                        }
+                    }
+                }
+            }
+            (0..len)
+                .map(|i| {
+                    let hi = best_hi[i];
+                    let mut best = (f64::INFINITY, usize::MAX);
+                    for &(lo, j) in &cands[i] {
+                        if lo > hi {
+                            continue;
+                        }
+                        let dot: f64 = (0..d).map(|c| q[(i, c)] * reference[(j, c)]).sum();
+                        let dist = ref_norm[j] - 2.0 * dot;
+                        if dist < best.0 || (dist == best.0 && j < best.1) {
+                            best = (dist, j);
+                        }
+                    }
+                    best.1
+                })
+                .collect()
+        })
+        .collect();
+    Ok(blocks.into_iter().flatten().collect())
+}
+
+/// Exact Euclidean nearest rows: for every row of `query` (n × d) the index of the nearest row
+/// of `reference` (m × d), ties to the smallest index (blocked brute force with a
+/// single-precision screen, exact in f64; [`crate::pointwise::nearest_neighbors`] documents it).
+pub fn nearest_rows(reference: MatRef<f64>, query: MatRef<f64>) -> Result<Vec<usize>> {
+    best_rows(reference, query, true)
+}
+
+/// Maximum inner product rows: for every row of `query` the index of the row of `reference` with
+/// the largest inner product, ties to the smallest index.
+pub fn max_inner_rows(reference: MatRef<f64>, query: MatRef<f64>) -> Result<Vec<usize>> {
+    best_rows(reference, query, false)
 }
 
 #[cfg(test)]

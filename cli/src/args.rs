@@ -261,6 +261,18 @@ pub(crate) struct PipelineArgs {
     /// Stop when the objective's relative decrease in one iteration is at most this.
     #[arg(long, default_value_t = defaults().completion.optimize.rel_tol)]
     pub(crate) rel_tol: f64,
+    /// Evaluate the completion method's L1 term on this many farthest-point samples of each
+    /// shape, weighted by their Voronoi areas (0: on every pair of vertices).
+    #[arg(long, default_value_t = defaults().completion.l1_sampling.samples())]
+    pub(crate) l1_samples: usize,
+    /// Also stop the completion optimizer when its point map has settled: check it every this
+    /// many iterations (0: off), on the L1 samples of X or every vertex.
+    #[arg(long, default_value_t = defaults().completion.settled.map_or(0, |s| s.every))]
+    pub(crate) map_check_every: usize,
+    /// Fraction of the checked vertices whose image may change between two checks
+    /// (--map-check-every).
+    #[arg(long, default_value_t = defaults().completion.settled.map_or(0.005, |s| s.tolerance))]
+    pub(crate) map_tolerance: f64,
     /// Point-map extraction of the completion method.
     #[arg(long, value_enum, default_value = "nn")]
     pub(crate) extract: ExtractChoice,

@@ -322,6 +322,17 @@ pub(crate) struct ReproBenchArgs {
     /// Isometry prior of the completion method (funcorr's default 1e-2; 0: the paper's (11)).
     #[arg(long, default_value_t = 1e-2)]
     completion_commutativity: f64,
+    /// Evaluate the completion method's L1 term on this many farthest-point samples of each
+    /// shape (0: on every pair of vertices).
+    #[arg(long, default_value_t = 0)]
+    l1_samples: usize,
+    /// Also stop the completion optimizer when its point map has settled: check every this many
+    /// iterations (0: off).
+    #[arg(long, default_value_t = 0)]
+    map_check_every: usize,
+    /// Fraction of the checked vertices whose image may change between two checks.
+    #[arg(long, default_value_t = 0.005)]
+    map_tolerance: f64,
     /// Pairs run at once (default: one per core).
     #[arg(long)]
     jobs: Option<usize>,
@@ -503,6 +514,8 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
             o.completion = funcorr::matching::completion_defaults(rich, a.scaling.into(), Form::Subspace);
             o.completion.params.mu_comm = a.completion_commutativity;
             o.completion.optimize.max_iterations = a.max_iterations;
+            o.completion.l1_sampling = funcorr::completion::L1Sampling::farthest(a.l1_samples);
+            o.completion.settled = crate::options::settled_map(a.map_check_every, a.map_tolerance)?;
             Ok(o)
         };
         let report = pool.install(|| {

@@ -185,6 +185,8 @@ pub(crate) fn pipeline_options(
         rel_tol: p.rel_tol,
         ..comp::OptimizeOptions::default()
     };
+    completion.l1_sampling = comp::L1Sampling::farthest(p.l1_samples);
+    completion.settled = settled_map(p.map_check_every, p.map_tolerance)?;
     let commutativity = p.commutativity.unwrap_or(base.commutativity);
     if !(commutativity.is_finite() && commutativity >= 0.0) {
         return Err(Error::invalid("--commutativity", "must be finite and ≥ 0"));
@@ -324,4 +326,16 @@ pub(crate) fn basis_demand(p: &PipelineArgs, opts: &funcorr::matching::MatchOpti
         None if need >= DEFAULT_BASIS_SIZE => Ok((need, who)),
         None => Ok((DEFAULT_BASIS_SIZE, format!("--kprime (default {DEFAULT_BASIS_SIZE})"))),
     }
+}
+
+/// The completion optimizer's stopping rule on the point map from --map-check-every (0: off) and
+/// --map-tolerance.
+pub(crate) fn settled_map(every: usize, tolerance: f64) -> Result<Option<funcorr::completion::SettledMap>> {
+    if every == 0 {
+        return Ok(None);
+    }
+    if !(0.0..=1.0).contains(&tolerance) {
+        return Err(Error::invalid("--map-tolerance", format!("must be in [0, 1], got {tolerance}")));
+    }
+    Ok(Some(funcorr::completion::SettledMap { every, tolerance }))
 }

@@ -378,7 +378,6 @@ pub(crate) mod tests {
     use crate::descriptors::signatures::{hkm, hks, hks_times, wks};
     use crate::laplacian::cotangent;
     use crate::primitives::bumpy_sphere;
-    use crate::shape::TriMesh;
     use crate::spectral::{eigen_basis, SpectralOptions};
 
     /// A small pair: a bumpy sphere X (`level` subdivisions) and Y = X with vertices renumbered
@@ -393,6 +392,9 @@ pub(crate) mod tests {
         pub g: Descriptors,
         /// map_xy of the truth: vertex i of X is vertex truth[i] of Y.
         pub truth: Vec<usize>,
+        /// Vertex positions of X (n) and Y (m).
+        pub px: Vec<[f64; 3]>,
+        pub py: Vec<[f64; 3]>,
     }
 
     pub(crate) fn small_pair(level: u32, k: usize) -> SmallPair {
@@ -421,8 +423,8 @@ pub(crate) mod tests {
                 .unwrap()
         };
         let (f, g) = (data(&bx, &seeds_x), data(&by, &seeds_y));
-        let _: &TriMesh = &y;
-        SmallPair { lx, ly, bx, by, f, g, truth }
+        let (px, py) = (x.vertices().to_vec(), y.vertices().to_vec());
+        SmallPair { lx, ly, bx, by, f, g, truth, px, py }
     }
 
     fn fd_check(p: &FullProblem, params: &CompletionParams, k: usize, seed: u64, what: &str) {

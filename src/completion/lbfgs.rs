@@ -82,7 +82,18 @@ pub type Objective<'a> = dyn FnMut(&[f64], &mut [f64]) -> Terms + 'a;
 /// objective change ≤ `rel_tol`, on ‖∇f‖ ≤ `grad_tol`·‖∇f₀‖, at the iteration cap, or when a
 /// line search along steepest descent finds no decrease. Errors when f is not finite at `x0`.
 pub fn minimize(x0: Vec<f64>, opts: &OptimizeOptions, eval: &mut Objective) -> Result<(Vec<f64>, CompletionReport)> {
-    let min = optim::lbfgs::minimize(x0, opts, |x: &[f64], grad: &mut [f64]| eval(x, grad))?;
+    minimize_monitored(x0, opts, eval, &mut |_, _| None)
+}
+
+/// [`minimize`] with the caller's stopping rule `monitor(iterations, x)`
+/// ([`crate::optim::lbfgs::minimize_monitored`]).
+pub fn minimize_monitored(
+    x0: Vec<f64>,
+    opts: &OptimizeOptions,
+    eval: &mut Objective,
+    monitor: &mut dyn FnMut(usize, &[f64]) -> Option<Stop>,
+) -> Result<(Vec<f64>, CompletionReport)> {
+    let min = optim::lbfgs::minimize_monitored(x0, opts, |x: &[f64], grad: &mut [f64]| eval(x, grad), monitor)?;
     let reason = match min.report.stop {
         Stop::ZeroGradient => "zero gradient at the start".to_string(),
         stop => stop.to_string(),

@@ -238,15 +238,8 @@ pub fn evaluate(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b:
         terms.dirichlet_y = add(params.mu2, terms::dirichlet_y(a, b, &problem.lambda_y));
     }
     if params.mu3 != 0.0 {
-        let t = terms::l1(
-            a,
-            b,
-            problem.phi.as_ref(),
-            problem.psi.as_ref(),
-            params.xi,
-            problem.l1_weights(),
-            params.block_rows,
-        );
+        let (phi, psi, weights) = problem.l1_operands();
+        let t = terms::l1(a, b, phi, psi, params.xi, weights, params.block_rows);
         terms.l1 = add(params.mu3, t);
     }
     if params.mu4 != 0.0 {
@@ -290,15 +283,8 @@ pub fn gradient_c(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, 
         t.prior = add(params.mu_prior, terms::prior_c(c.as_ref(), e, problem.c_scale));
     }
     if params.mu3 != 0.0 {
-        let l1 = terms::l1_c(
-            a,
-            b,
-            problem.phi.as_ref(),
-            problem.psi.as_ref(),
-            params.xi,
-            problem.l1_weights(),
-            params.block_rows,
-        );
+        let (phi, psi, weights) = problem.l1_operands();
+        let l1 = terms::l1_c(a, b, phi, psi, params.xi, weights, params.block_rows);
         t.l1 = add(params.mu3, l1);
     }
     t.total = t.sum();
@@ -318,16 +304,8 @@ pub fn value(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b: Ma
         terms.dirichlet_y = params.mu2 * terms::dirichlet_y(a, b, &problem.lambda_y).value;
     }
     if params.mu3 != 0.0 {
-        terms.l1 = params.mu3
-            * terms::l1_value(
-                a,
-                b,
-                problem.phi.as_ref(),
-                problem.psi.as_ref(),
-                params.xi,
-                problem.l1_weights(),
-                params.block_rows,
-            );
+        let (phi, psi, weights) = problem.l1_operands();
+        terms.l1 = params.mu3 * terms::l1_value(a, b, phi, psi, params.xi, weights, params.block_rows);
     }
     if params.mu4 != 0.0 {
         let (grams, w) = low_norm_setup(problem, params, a.ncols());

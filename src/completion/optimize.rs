@@ -7,8 +7,9 @@ use faer::{Mat, MatRef, Par};
 
 use super::lbfgs::{self, CompletionReport, OptimizeOptions};
 use super::objective::{evaluate, CompletionParams};
-use super::Problem;
+use super::{mul, Problem};
 use crate::error::{Error, Result};
+use crate::optim::Stop;
 
 /// x = (vec A, vec B), column-major.
 pub(crate) fn pack(a: MatRef<f64>, b: MatRef<f64>) -> Vec<f64> {
@@ -48,6 +49,40 @@ pub fn optimize(
     a0: MatRef<f64>,
     b0: MatRef<f64>,
 ) -> Result<(Mat<f64>, Mat<f64>, CompletionReport)> {
+    optimize_until_settled(problem, params, opts, None, a0, b0)
+}
+
+/// A stopping rule on the point map (issue: stop when the map, not only the objective, has
+/// settled): every `every` iterations, the map of the check vertices of X — the L1 samples
+/// ([`Problem::with_l1_samples`]) or every vertex — by nearest neighbours of the rows of Φ B
+/// among the rows of Ψ A (the extraction of [`super::solve`]); L-BFGS stops when at most
+/// `tolerance` of them changed since the previous check.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SettledMap {
+    /// Iterations between checks (≥ 1).
+    pub every: usize,
+    /// Fraction of the check vertices whose image may change between two checks.
+    pub tolerance: f64,
+}
+
+/// [`optimize`] that also stops when the point map has settled (`settled`, `None`: only the
+/// objective's rules). Errors: those of [`optimize`]; `every` = 0 or a tolerance outside [0, 1].
+pub fn optimize_until_settled(
+    problem: &Problem,
+    params: &CompletionParams,
+    opts: &OptimizeOptions,
+    settled: Option<SettledMap>,
+    a0: MatRef<f64>,
+    b0: MatRef<f64>,
+) -> Result<(Mat<f64>, Mat<f64>, CompletionReport)> {
+    if let Some(s) = settled {
+        if s.every == 0 || !(0.0..=1.0).contains(&s.tolerance) {
+            return Err(Error::invalid(
+                "settled map",
+                format!("need a check interval ≥ 1 and a tolerance in [0, 1], got {} and {}", s.every, s.tolerance),
+            ));
+        }
+    }
     let kp = problem.k_prime();
     if a0.nrows() != kp || b0.nrows() != kp || a0.ncols() != b0.ncols() || a0.ncols() == 0 {
         return Err(Error::invalid(
@@ -71,7 +106,27 @@ pub fn optimize(
         pack_into(e.grad_a.as_ref(), e.grad_b.as_ref(), grad);
         e.terms
     };
-    let (x, report) = lbfgs::minimize(pack(a0, b0), opts, &mut eval)?;
+    // The check vertices of X (rows of Φ) and the map at the last check.
+    let check = problem.l1_sample.as_ref().map_or(problem.phi.as_ref(), |s| s.phi.as_ref());
+    let mut last: Option<Vec<usize>> = None;
+    let mut monitor = |iterations: usize, x: &[f64]| -> Option<Stop> {
+        let s = settled?;
+        if !iterations.is_multiple_of(s.every) {
+            return None;
+        }
+        let (a, b) = unpack(x, kp, k);
+        let query = mul(check, b.as_ref());
+        let reference = mul(problem.psi.as_ref(), a.as_ref());
+        // A failed search (non-finite factors) leaves the decision to the objective's rules.
+        let map = crate::spatial::nearest_rows(reference.as_ref(), query.as_ref()).ok()?;
+        let changed = last.as_ref().map(|l| l.iter().zip(&map).filter(|(p, q)| p != q).count());
+        last = Some(map);
+        match changed {
+            Some(c) if c as f64 <= s.tolerance * check.nrows() as f64 => Some(Stop::Settled(s.tolerance)),
+            _ => None,
+        }
+    };
+    let (x, report) = lbfgs::minimize_monitored(pack(a0, b0), opts, &mut eval, &mut monitor)?;
     let (a, b) = unpack(&x, kp, k);
     Ok((a, b, report))
 }

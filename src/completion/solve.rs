@@ -11,11 +11,12 @@ use super::full::{low_norm_objective, metric, scale_rows, unscale_rows, FullProb
 use super::lbfgs;
 use super::lbfgs::{CompletionReport, OptimizeOptions};
 use super::objective::{CompletionParams, Terms};
-use super::optimize::{init_from_c, init_from_svd, optimize};
+use super::optimize::{init_from_c, init_from_svd, optimize_until_settled, SettledMap};
 use super::{gemm_nn, gemm_tn, mul, Problem, Scaling};
 use crate::descriptors::Descriptors;
 use crate::error::{Error, Result};
 use crate::laplacian::Laplacian;
+use crate::spatial::{farthest_point_samples, Samples};
 use crate::spectral::Basis;
 
 /// Which problem of the paper's §3 to solve.
@@ -55,6 +56,41 @@ pub enum Optimizer {
     Rcg,
 }
 
+/// Where the L1 term of the subspace form (11) is evaluated ([`super::Problem::with_l1_samples`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case", tag = "kind")]
+pub enum L1Sampling {
+    /// On every pair of vertices: the m × n matrix T, block by block.
+    #[default]
+    All,
+    /// On `samples` farthest-point samples of each shape (Euclidean, deterministic), each
+    /// weighted by the area of its Voronoi cell: a quadrature of ∫∫ √(t² + ξ) dy dx at
+    /// (m n) / samples² of the cost. Needs the vertex positions.
+    Farthest {
+        /// Samples per shape.
+        samples: usize,
+    },
+}
+
+impl L1Sampling {
+    /// [`L1Sampling::Farthest`] with `samples` per shape, or [`L1Sampling::All`] for 0.
+    pub fn farthest(samples: usize) -> Self {
+        if samples == 0 {
+            L1Sampling::All
+        } else {
+            L1Sampling::Farthest { samples }
+        }
+    }
+
+    /// The samples per shape (0 for [`L1Sampling::All`]).
+    pub fn samples(&self) -> usize {
+        match *self {
+            L1Sampling::All => 0,
+            L1Sampling::Farthest { samples } => samples,
+        }
+    }
+}
+
 /// Everything [`solve`] needs besides the data.
 #[derive(Clone, Debug, Serialize)]
 pub struct CompletionOptions {
@@ -76,6 +112,13 @@ pub struct CompletionOptions {
     pub optimize: OptimizeOptions,
     /// Options of the ADMM of (9).
     pub admm: AdmmOptions,
+    /// Where the L1 term of (11) is evaluated (every vertex by default).
+    #[serde(default)]
+    pub l1_sampling: L1Sampling,
+    /// Also stop L-BFGS on the subspace form (11) when its point map has settled (`None`: the
+    /// objective's rules only).
+    #[serde(default)]
+    pub settled: Option<SettledMap>,
 }
 
 impl CompletionOptions {
@@ -94,6 +137,8 @@ impl CompletionOptions {
             optimizer: None,
             optimize: OptimizeOptions::default(),
             admm: AdmmOptions::default(),
+            l1_sampling: L1Sampling::All,
+            settled: None,
         }
     }
 }
@@ -218,7 +263,7 @@ pub fn solve(
     c0: MatRef<f64>,
     opts: &CompletionOptions,
 ) -> Result<Solution> {
-    solve_with_prior(bx, by, laplacians, f, g, c0, opts, None)
+    solve_with_prior(bx, by, laplacians, f, g, c0, opts, None, None)
 }
 
 /// [`solve`] with the optional axiomatic prior `prior` ([`super::terms::prior`], weighted by
@@ -226,6 +271,8 @@ pub fn solve(
 /// map between the input bases, e.g. [`crate::fmap::energy::Energy`] built with the descriptor
 /// weight 0. Only the subspace form (11) has it. Errors: those of [`solve`], a prior with weight 0
 /// or a weight without a prior, a prior larger than k', a prior with another form.
+///
+/// `points` (X: n, Y: m vertex positions) are needed by [`L1Sampling::Farthest`] only.
 #[allow(clippy::too_many_arguments)]
 pub fn solve_with_prior(
     bx: &Basis,
@@ -236,6 +283,7 @@ pub fn solve_with_prior(
     c0: MatRef<f64>,
     opts: &CompletionOptions,
     prior: Option<&crate::fmap::energy::Energy>,
+    points: Option<crate::spatial::PositionPair>,
 ) -> Result<Solution> {
     check_options(opts, bx, by)?;
     if prior.is_some() != (opts.params.mu_prior > 0.0) {
@@ -252,6 +300,12 @@ pub fn solve_with_prior(
     if let Some(e) = prior {
         sub = sub.with_prior(e.clone())?;
     }
+    if let Some((sx, sy)) = l1_samples(opts.l1_sampling, bx, by, points)? {
+        if opts.form != Form::Subspace {
+            return Err(Error::invalid("L1 samples", "only the subspace form (11) samples its L1 term"));
+        }
+        sub = sub.with_l1_samples(&sx, &sy)?;
+    }
     let c0 = sub.c_from_bases(c0);
     let (a0, b0) = match opts.init {
         Init::Pad => init_from_c(c0.as_ref(), kp, k)?,
@@ -263,7 +317,8 @@ pub fn solve_with_prior(
     if opts.form == Form::Subspace {
         let (a, b, report, objective) = match optimizer {
             Optimizer::Lbfgs => {
-                let (a, b, r) = optimize(&sub, params, &opts.optimize, a0.as_ref(), b0.as_ref())?;
+                let (a, b, r) =
+                    optimize_until_settled(&sub, params, &opts.optimize, opts.settled, a0.as_ref(), b0.as_ref())?;
                 let obj = r.terms.total;
                 (a, b, SolverReport::Descent(r), obj)
             }
@@ -340,6 +395,37 @@ pub fn solve_with_prior(
     let cx = coefficients_of(bx, kp, full.basis_scale_x, &full.mass_x, right.as_ref());
     let c = mul(cy.as_ref(), cx.transpose()) * faer::Scale(full.c_scale);
     Ok(Solution { left, right, c, coefficients: None, report, objective })
+}
+
+/// The samples of X and Y that `sampling` asks for (`None`: every vertex).
+fn l1_samples(
+    sampling: L1Sampling,
+    bx: &Basis,
+    by: &Basis,
+    points: Option<crate::spatial::PositionPair>,
+) -> Result<Option<(Samples, Samples)>> {
+    let positive = |s: usize| -> Result<usize> {
+        if s == 0 {
+            return Err(Error::invalid("L1 samples", "the number of samples must be at least 1"));
+        }
+        Ok(s)
+    };
+    match sampling {
+        L1Sampling::All => Ok(None),
+        L1Sampling::Farthest { samples } => {
+            let s = positive(samples)?;
+            let Some((px, py)) = points else {
+                return Err(Error::invalid("L1 samples", "farthest-point samples need the vertex positions"));
+            };
+            if px.len() != bx.n() || py.len() != by.n() {
+                return Err(Error::invalid(
+                    "L1 samples",
+                    format!("{} and {} positions for {} and {} vertices", px.len(), py.len(), bx.n(), by.n()),
+                ));
+            }
+            Ok(Some((farthest_point_samples(px, &bx.mass, s)?, farthest_point_samples(py, &by.mass, s)?)))
+        }
+    }
 }
 
 /// Balanced factors of T = L Rᵀ in the metric of the low norm of (10): (D_Y L', D_X R') with
@@ -548,6 +634,75 @@ mod tests {
         let (rate, _, _, _) = recovery(&sp, &opts);
         eprintln!("FixedRank with the subspace weights: {:.1}% recovered", 100.0 * rate);
         assert!(rate < 0.9, "{rate}");
+    }
+
+    /// The subspace form with its L1 term on farthest-point samples recovers the permutation
+    /// (642 vertices, k' = 40, k = 30). Measured: every vertex 96.9 %; 60, 100, 150, 200, 300 and
+    /// 450 samples per shape 92.5, 96.3, 91.6, 90.5, 92.4, 95.3 % (the objectives within 0.4 %
+    /// of each other; the last few percent are near-ties of the nearest-neighbour extraction).
+    /// Random samples ([`Samples::random`], 2000 draws, an unbiased estimate) gave 82.2 and
+    /// 97.5 % for two seeds and are not offered to the solver.
+    #[test]
+    fn sampled_l1_recovers_a_permutation() {
+        let sp = small_pair(3, 40); // 642 vertices
+        let c0 = ovsjanikov(&sp.bx, &sp.by, &sp.f, &sp.g, 20, &OvsjanikovOptions { commutativity: 1e-2 }).unwrap();
+        let mut opts = CompletionOptions::paper(false, Scaling::Unit);
+        (opts.k_prime, opts.k) = (40, 30);
+        opts.optimize.max_iterations = 1000;
+        let points = Some((sp.px.as_slice(), sp.py.as_slice()));
+        for samples in [100, 200, 300] {
+            opts.l1_sampling = L1Sampling::Farthest { samples };
+            let s = solve_with_prior(&sp.bx, &sp.by, None, &sp.f, &sp.g, c0.as_ref(), &opts, None, points).unwrap();
+            let rate = fraction(&nearest_neighbors(s.left.as_ref(), s.right.as_ref()).unwrap(), &sp.truth);
+            eprintln!("{samples} samples: {:.1}% recovered, {}", 100.0 * rate, s.report);
+            assert!(rate >= 0.9, "{samples}: {rate}");
+        }
+        // Farthest-point samples need positions; sampling needs the scale-free weights.
+        let e = solve_with_prior(&sp.bx, &sp.by, None, &sp.f, &sp.g, c0.as_ref(), &opts, None, None).unwrap_err();
+        assert!(e.to_string().contains("positions"), "{e}");
+        opts.scaling = Scaling::Paper;
+        let e = solve_with_prior(&sp.bx, &sp.by, None, &sp.f, &sp.g, c0.as_ref(), &opts, None, points).unwrap_err();
+        assert!(e.to_string().contains("L1 samples"), "{e}");
+        opts.scaling = Scaling::Unit;
+        opts.l1_sampling = L1Sampling::Farthest { samples: 0 };
+        assert!(solve_with_prior(&sp.bx, &sp.by, None, &sp.f, &sp.g, c0.as_ref(), &opts, None, points).is_err());
+    }
+
+    /// The stopping rule on the point map ends L-BFGS before the objective's rules, with the
+    /// permutation recovered as well (642 vertices, k' = 40, k = 30, check every 10 iterations,
+    /// tolerance 0.5 %; measured 98.1 % in 360 iterations against 96.9 % in 566); a tolerance of 0
+    /// never stops earlier than a settled map does.
+    #[test]
+    fn settled_map_stops_early_and_recovers() {
+        let sp = small_pair(3, 40);
+        let c0 = ovsjanikov(&sp.bx, &sp.by, &sp.f, &sp.g, 20, &OvsjanikovOptions { commutativity: 1e-2 }).unwrap();
+        let mut opts = CompletionOptions::paper(false, Scaling::Unit);
+        (opts.k_prime, opts.k) = (40, 30);
+        opts.optimize.max_iterations = 1000;
+        let run = |o: &CompletionOptions| {
+            let s = solve(&sp.bx, &sp.by, None, &sp.f, &sp.g, c0.as_ref(), o).unwrap();
+            let rate = fraction(&nearest_neighbors(s.left.as_ref(), s.right.as_ref()).unwrap(), &sp.truth);
+            let reason = match &s.report {
+                SolverReport::Descent(r) => r.stop_reason.clone(),
+                SolverReport::Admm(_) => unreachable!("the subspace form runs L-BFGS"),
+            };
+            (rate, s.report.iterations(), reason)
+        };
+        let (full_rate, full_its, _) = run(&opts);
+        opts.settled = Some(SettledMap { every: 10, tolerance: 0.005 });
+        let (rate, its, report) = run(&opts);
+        eprintln!(
+            "objective rules: {:.1}% in {full_its}; settled map: {:.1}% in {its} ({report})",
+            100.0 * full_rate,
+            100.0 * rate
+        );
+        assert!(report.contains("settled"), "{report}");
+        assert!(its < full_its && its % 10 == 0, "{its} vs {full_its}");
+        assert!(rate >= 0.95, "{rate}");
+        opts.settled = Some(SettledMap { every: 10, tolerance: 0.0 });
+        assert!(run(&opts).1 >= its);
+        opts.settled = Some(SettledMap { every: 0, tolerance: 0.0 });
+        assert!(solve(&sp.bx, &sp.by, None, &sp.f, &sp.g, c0.as_ref(), &opts).is_err());
     }
 
     /// Balancing the factors of (10) keeps T, lowers the low norm to the nuclear norm, and

@@ -77,6 +77,31 @@ pub struct AxiomaticPipeline {
     /// 0.1), for about 0.6 s per 5k pair (EXPERIMENTS.md).
     #[serde(default)]
     pub polish: usize,
+    /// When the final point maps of every vertex are searched near the map of the samples
+    /// instead of exactly ([`NearSearch`]).
+    #[serde(default)]
+    pub near: NearSearch,
+}
+
+/// The search of the final point maps (X → Y and Y → X) on large pairs: above `above_pairs`
+/// vertex pairs n · m, every vertex is matched among the vertices of the other shape in the
+/// `cells` Voronoi cells (of the `refine.samples` farthest-point samples) nearest to the image
+/// of its own sample ([`crate::pointwise::nearest_neighbors_near`]); below it, exactly. The exact
+/// search costs O(n · m · k): 2·10¹³ flops for the 330-dimensional embedding of the polish at
+/// 250k vertices per shape.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct NearSearch {
+    /// n · m above which the search is restricted (the default 2·10⁹, about 45k × 45k vertices,
+    /// keeps every faust_r, tosca_r and 28k-vertex tosca_hires pair exact).
+    pub above_pairs: u64,
+    /// Cells searched around the image of each sample.
+    pub cells: usize,
+}
+
+impl Default for NearSearch {
+    fn default() -> Self {
+        NearSearch { above_pairs: 2_000_000_000, cells: 16 }
+    }
 }
 
 impl Default for AxiomaticPipeline {
@@ -95,6 +120,7 @@ impl Default for AxiomaticPipeline {
             bijective: 0.0,
             continue_probe: true,
             polish: 1,
+            near: NearSearch::default(),
         }
     }
 }
@@ -133,6 +159,9 @@ pub struct AxiomaticResult {
     pub chosen: usize,
     /// (stage, seconds).
     pub stages: Vec<(String, f64)>,
+    /// The samples of X and Y of the final refinement when the final maps were searched near
+    /// them ([`NearSearch`]), for the map Y → X.
+    pub near_samples: Option<(Samples, Samples)>,
 }
 
 fn samples_of(s: &PreparedShape, count: usize) -> Result<Samples> {
@@ -275,6 +304,13 @@ pub fn axiomatic_pipeline(
         (true, Some(c)) => c,
         _ => c_fit.clone(),
     };
+    let near_positions = match (x.positions(), y.positions()) {
+        (Some(px), Some(py)) if (px.len() as u64).saturating_mul(py.len() as u64) > p.near.above_pairs => {
+            Some(refine::Near { x: px, y: py, cells: p.near.cells })
+        }
+        _ => None,
+    };
+    let mut near_samples = None;
     let (c_yx, map_xy) = if p.refine.k_final == 0 {
         let unrefined = (c_fit.clone(), refine::map_of_pullback(phi, psi, c_fit.as_ref(), None)?);
         stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
@@ -314,13 +350,17 @@ pub fn axiomatic_pipeline(
                     Some(sy) => sy,
                     None => samples_of(y, p.refine.samples)?,
                 };
-                let polished = refine::bijective_polish(phi, psi, &sx, &sy, c.as_ref(), p.polish)?;
+                let near = near_positions.as_ref().filter(|_| p.refine.samples > 0);
+                let polished = refine::bijective_polish(phi, psi, &sx, &sy, c.as_ref(), p.polish, near)?;
                 stages.push(("polish".to_string(), t.elapsed().as_secs_f64()));
+                if near.is_some() {
+                    near_samples = Some((sx, sy));
+                }
                 polished
             }
         }
     };
-    Ok(AxiomaticResult { map_xy, c_yx, c_fit, candidates, chosen, stages })
+    Ok(AxiomaticResult { map_xy, c_yx, c_fit, candidates, chosen, stages, near_samples })
 }
 
 #[cfg(test)]

@@ -317,7 +317,7 @@ pub fn run(
     g: &Descriptors,
     opts: &MatchOptions,
 ) -> Result<MatchResult> {
-    run_with_gradients(bx, by, laplacians, None, f, g, opts)
+    run_with_gradients(bx, by, laplacians, None, None, f, g, opts)
 }
 
 /// The completion method's optional axiomatic prior ([`completion::solve_with_prior`]) when its
@@ -356,11 +356,13 @@ fn completion_prior(
 }
 
 /// [`run`] with the face gradients of both shapes, for the completion method's orientation prior.
+#[allow(clippy::too_many_arguments)]
 fn run_with_gradients(
     bx: &Basis,
     by: &Basis,
     laplacians: Option<(&Laplacian, &Laplacian)>,
     gradients: Option<(&crate::operators::FaceGradients, &crate::operators::FaceGradients)>,
+    points: Option<crate::spatial::PositionPair>,
     f: &Descriptors,
     g: &Descriptors,
     opts: &MatchOptions,
@@ -404,7 +406,17 @@ fn run_with_gradients(
             let c0 = timed(&mut stages, "initial map", || fmap::ovsjanikov(bx, by, f, g, init_k, &ovs))?;
             let prior = timed(&mut stages, "prior", || completion_prior(bx, by, gradients, f, g, opts))?;
             let s = timed(&mut stages, "completion", || {
-                completion::solve_with_prior(bx, by, laplacians, f, g, c0.as_ref(), &opts.completion, prior.as_ref())
+                completion::solve_with_prior(
+                    bx,
+                    by,
+                    laplacians,
+                    f,
+                    g,
+                    c0.as_ref(),
+                    &opts.completion,
+                    prior.as_ref(),
+                    points,
+                )
             })?;
             let maps = timed(&mut stages, "extraction", || extract(&s, bx, by, opts.extraction))?;
             solver = Some(SolverReport::Completion(s.report.clone()));
@@ -462,13 +474,29 @@ pub fn run_prepared(
             (true, Some(gx), Some(gy)) => Some((gx, gy)),
             _ => None,
         };
-        return run_with_gradients(&x.basis, &y.basis, Some((&x.laplacian, &y.laplacian)), gradients, f, g, opts);
+        let points = x.positions().zip(y.positions());
+        return run_with_gradients(
+            &x.basis,
+            &y.basis,
+            Some((&x.laplacian, &y.laplacian)),
+            gradients,
+            points,
+            f,
+            g,
+            opts,
+        );
     }
     let r = axiomatic::axiomatic_pipeline(x, y, f, g, &opts.axiomatic)?;
     let mut stages = r.stages;
     let c = r.c_yx.transpose().to_owned();
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
-    let map_yx = timed(&mut stages, "map Y → X", || crate::refine::map_of_pullback(psi, phi, c.as_ref(), None))?;
+    let map_yx = timed(&mut stages, "map Y → X", || match (&r.near_samples, x.positions(), y.positions()) {
+        (Some((sx, sy)), Some(px), Some(py)) => {
+            let near = crate::refine::Near { x: py, y: px, cells: opts.axiomatic.near.cells };
+            crate::refine::map_of_pullback_near(psi, phi, c.as_ref(), &sy.vertices, &sx.vertices, &near)
+        }
+        _ => crate::refine::map_of_pullback(psi, phi, c.as_ref(), None),
+    })?;
     Ok(MatchResult {
         map_xy: r.map_xy,
         map_yx,

@@ -182,10 +182,27 @@ pub fn line_search<V: Clone>(
 /// zero gradient at the start, at the iteration cap, or when a line search along steepest
 /// descent finds no decrease ([`Stop::LineSearchFailed`]). Errors when f or ∇f is not finite at
 /// `x0`.
-pub fn minimize<V, F>(x0: Vec<f64>, opts: &LbfgsOptions, mut f: F) -> Result<Minimum<Vec<f64>, V>>
+pub fn minimize<V, F>(x0: Vec<f64>, opts: &LbfgsOptions, f: F) -> Result<Minimum<Vec<f64>, V>>
 where
     V: Value,
     F: FnMut(&[f64], &mut [f64]) -> V,
+{
+    minimize_monitored(x0, opts, f, |_, _| None)
+}
+
+/// [`minimize`] with a stopping rule of the caller's: after every accepted step,
+/// `monitor(iterations, x)` may return a [`Stop`] to end the minimization there (e.g.
+/// [`Stop::Settled`] when a quantity derived from x has stopped changing).
+pub fn minimize_monitored<V, F, M>(
+    x0: Vec<f64>,
+    opts: &LbfgsOptions,
+    mut f: F,
+    mut monitor: M,
+) -> Result<Minimum<Vec<f64>, V>>
+where
+    V: Value,
+    F: FnMut(&[f64], &mut [f64]) -> V,
+    M: FnMut(usize, &[f64]) -> Option<Stop>,
 {
     let start = Instant::now();
     let mut evaluations = 0usize;
@@ -268,6 +285,9 @@ where
         iterations += 1;
         history.push(fx);
         stop = tolerances_met(opts.rel_tol, opts.grad_tol, f_old, fx, dot(&g, &g).sqrt(), g0_norm);
+        if stop.is_none() {
+            stop = monitor(iterations, &x);
+        }
     }
     let report = Report {
         iterations,

@@ -57,13 +57,23 @@ pub enum Stop {
     SmallDecrease,
     /// f or its gradient is not finite (at the start, or the gradient after a step).
     NotFinite,
+    /// The caller's monitor ([`lbfgs::minimize_monitored`]) found the result settled: the
+    /// fraction of a point map that changed since its last check fell to this tolerance.
+    Settled(f64),
 }
 
 impl Stop {
     /// True when a tolerance was met or the gradient vanished (not the iteration cap, a failed
     /// line search or a non-finite value).
     pub fn converged(&self) -> bool {
-        matches!(self, Stop::RelativeChange(_) | Stop::GradientTolerance(_) | Stop::ZeroGradient | Stop::SmallDecrease)
+        matches!(
+            self,
+            Stop::RelativeChange(_)
+                | Stop::GradientTolerance(_)
+                | Stop::ZeroGradient
+                | Stop::SmallDecrease
+                | Stop::Settled(_)
+        )
     }
 }
 
@@ -77,6 +87,7 @@ impl fmt::Display for Stop {
             Stop::LineSearchFailed => write!(f, "line search found no decrease along the steepest descent direction"),
             Stop::SmallDecrease => write!(f, "objective decrease below tolerance on consecutive iterations"),
             Stop::NotFinite => write!(f, "the objective or its gradient is not finite"),
+            Stop::Settled(t) => write!(f, "point map settled (≤ {t:e} of it changed since the last check)"),
         }
     }
 }
