@@ -301,6 +301,13 @@ pub(crate) struct PipelineArgs {
     /// functional maps with the coupling and bijectivity terms of Ren et al. 2021; 0: none).
     #[arg(long, default_value_t = defaults().axiomatic.polish)]
     pub(crate) polish: usize,
+    /// Vertex pairs n·m above which the axiomatic method's final point maps are searched near
+    /// the map of its samples instead of exactly (large shapes).
+    #[arg(long, default_value_t = defaults().axiomatic.near.above_pairs)]
+    pub(crate) near_above: u64,
+    /// Cells of the other shape searched around each sample's image (--near-above).
+    #[arg(long, default_value_t = defaults().axiomatic.near.cells)]
+    pub(crate) near_cells: usize,
     /// Which maps the axiomatic method looks for (orientation term and signed descriptors).
     #[arg(long, value_enum, default_value = "preserve")]
     pub(crate) orientation: OrientationChoice,

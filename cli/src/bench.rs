@@ -515,7 +515,8 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
             o.completion.params.mu_comm = a.completion_commutativity;
             o.completion.optimize.max_iterations = a.max_iterations;
             o.completion.l1_sampling = funcorr::completion::L1Sampling::farthest(a.l1_samples);
-            o.completion.settled = crate::options::settled_map(a.map_check_every, a.map_tolerance)?;
+            // The map the refinement starts from: the leading refine_k block of C.
+            o.completion.settled = crate::options::settled_map(a.map_check_every, a.map_tolerance, o.refine_k)?;
             Ok(o)
         };
         let report = pool.install(|| {

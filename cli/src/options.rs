@@ -186,7 +186,13 @@ pub(crate) fn pipeline_options(
         ..comp::OptimizeOptions::default()
     };
     completion.l1_sampling = comp::L1Sampling::farthest(p.l1_samples);
-    completion.settled = settled_map(p.map_check_every, p.map_tolerance)?;
+    // The map that matters is the one the refinement starts from: that of the leading refine_k
+    // block of C (the factors' own map without a refinement).
+    let refined = match p.refine {
+        Some(r) => r != Refine::None,
+        None => base.refine != funcorr::matching::Refine::None,
+    };
+    completion.settled = settled_map(p.map_check_every, p.map_tolerance, if refined { p.refine_k } else { 0 })?;
     let commutativity = p.commutativity.unwrap_or(base.commutativity);
     if !(commutativity.is_finite() && commutativity >= 0.0) {
         return Err(Error::invalid("--commutativity", "must be finite and ≥ 0"));
@@ -235,6 +241,10 @@ pub(crate) fn pipeline_options(
         }
         a.refine.samples = p.zoomout_samples;
         a.polish = p.polish;
+        if p.near_cells == 0 {
+            return Err(Error::invalid("--near-cells", "must be at least 1"));
+        }
+        a.near = funcorr::matching::axiomatic::NearSearch { above_pairs: p.near_above, cells: p.near_cells };
         for (flag, v) in [
             ("--w-descriptors", p.w_descriptors),
             ("--w-laplacian", p.w_laplacian),
@@ -330,12 +340,12 @@ pub(crate) fn basis_demand(p: &PipelineArgs, opts: &funcorr::matching::MatchOpti
 
 /// The completion optimizer's stopping rule on the point map from --map-check-every (0: off) and
 /// --map-tolerance.
-pub(crate) fn settled_map(every: usize, tolerance: f64) -> Result<Option<funcorr::completion::SettledMap>> {
+pub(crate) fn settled_map(every: usize, tolerance: f64, k: usize) -> Result<Option<funcorr::completion::SettledMap>> {
     if every == 0 {
         return Ok(None);
     }
     if !(0.0..=1.0).contains(&tolerance) {
         return Err(Error::invalid("--map-tolerance", format!("must be in [0, 1], got {tolerance}")));
     }
-    Ok(Some(funcorr::completion::SettledMap { every, tolerance }))
+    Ok(Some(funcorr::completion::SettledMap { every, tolerance, k }))
 }

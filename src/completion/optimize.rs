@@ -52,17 +52,22 @@ pub fn optimize(
     optimize_until_settled(problem, params, opts, None, a0, b0)
 }
 
-/// A stopping rule on the point map (issue: stop when the map, not only the objective, has
-/// settled): every `every` iterations, the map of the check vertices of X — the L1 samples
-/// ([`Problem::with_l1_samples`]) or every vertex — by nearest neighbours of the rows of Φ B
-/// among the rows of Ψ A (the extraction of [`super::solve`]); L-BFGS stops when at most
-/// `tolerance` of them changed since the previous check.
+/// A stopping rule on the point map (stop when the map, not only the objective, has settled):
+/// every `every` iterations, the map of the check vertices of X — the L1 samples
+/// ([`Problem::with_l1_samples`]) or every vertex — is computed, and L-BFGS stops when at most
+/// `tolerance` of them changed since the previous check. The map is the one the caller reads
+/// off: with `k` = 0 the nearest rows of Ψ A for the rows of Φ B (the extraction of
+/// [`super::solve`]); with `k` > 0 the map of the leading k × k block C_k of C = A Bᵀ (the
+/// nearest rows of Ψ_k C_k for the rows of Φ_k), where a refinement starting from C_k begins.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SettledMap {
     /// Iterations between checks (≥ 1).
     pub every: usize,
     /// Fraction of the check vertices whose image may change between two checks.
     pub tolerance: f64,
+    /// 0: the map of the factors; k > 0: the map of the leading k × k block of C.
+    #[serde(default)]
+    pub k: usize,
 }
 
 /// [`optimize`] that also stops when the point map has settled (`settled`, `None`: only the
@@ -115,8 +120,13 @@ pub fn optimize_until_settled(
             return None;
         }
         let (a, b) = unpack(x, kp, k);
-        let query = mul(check, b.as_ref());
-        let reference = mul(problem.psi.as_ref(), a.as_ref());
+        let (query, reference) = if s.k == 0 {
+            (mul(check, b.as_ref()), mul(problem.psi.as_ref(), a.as_ref()))
+        } else {
+            let kc = s.k.min(kp);
+            let c = mul(a.subrows(0, kc), b.subrows(0, kc).transpose());
+            (check.subcols(0, kc).to_owned(), mul(problem.psi.subcols(0, kc), c.as_ref()))
+        };
         // A failed search (non-finite factors) leaves the decision to the objective's rules.
         let map = crate::spatial::nearest_rows(reference.as_ref(), query.as_ref()).ok()?;
         let changed = last.as_ref().map(|l| l.iter().zip(&map).filter(|(p, q)| p != q).count());

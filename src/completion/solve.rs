@@ -689,7 +689,7 @@ mod tests {
             (rate, s.report.iterations(), reason)
         };
         let (full_rate, full_its, _) = run(&opts);
-        opts.settled = Some(SettledMap { every: 10, tolerance: 0.005 });
+        opts.settled = Some(SettledMap { every: 10, tolerance: 0.005, k: 0 });
         let (rate, its, report) = run(&opts);
         eprintln!(
             "objective rules: {:.1}% in {full_its}; settled map: {:.1}% in {its} ({report})",
@@ -699,9 +699,9 @@ mod tests {
         assert!(report.contains("settled"), "{report}");
         assert!(its < full_its && its % 10 == 0, "{its} vs {full_its}");
         assert!(rate >= 0.95, "{rate}");
-        opts.settled = Some(SettledMap { every: 10, tolerance: 0.0 });
+        opts.settled = Some(SettledMap { every: 10, tolerance: 0.0, k: 0 });
         assert!(run(&opts).1 >= its);
-        opts.settled = Some(SettledMap { every: 0, tolerance: 0.0 });
+        opts.settled = Some(SettledMap { every: 0, tolerance: 0.0, k: 0 });
         assert!(solve(&sp.bx, &sp.by, None, &sp.f, &sp.g, c0.as_ref(), &opts).is_err());
     }
 
