@@ -253,17 +253,69 @@ fn check_zoomout(phi: MatRef<f64>, psi: MatRef<f64>, c0: MatRef<f64>, opts: &Zoo
     }
 }
 
+/// [`zoomout_fmap`] for shapes of 10⁵–10⁶ vertices: after the first iteration (exact), the map
+/// of every sample of X is searched near its previous image only, among the vertices of Y in
+/// the `near.cells` Voronoi cells (around the vertices `y_cells` of Y) nearest to that image
+/// ([`crate::pointwise::nearest_neighbors_near`] with each sample its own cell):
+/// O(#samples · cells · m / #y_cells · k) per iteration instead of O(#samples · m · k).
+/// Errors as [`zoomout`] and [`crate::pointwise::nearest_neighbors_near`].
+pub fn zoomout_fmap_near(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    samples: &Samples,
+    y_cells: &[usize],
+    c0: MatRef<f64>,
+    opts: &ZoomOutOptions,
+    near: &Near,
+) -> Result<Mat<f64>> {
+    check_zoomout(phi, psi, c0, opts)?;
+    if samples.vertices.iter().any(|&v| v >= near.x.len()) {
+        return Err(Error::invalid("samples", "a vertex id is out of range"));
+    }
+    let positions: Vec<[f64; 3]> = samples.vertices.iter().map(|&v| near.x[v]).collect();
+    let own: Vec<usize> = (0..samples.len()).collect();
+    let previous = std::cell::RefCell::new(None::<Vec<usize>>);
+    zoomout_loop(phi, psi, samples, c0.to_owned(), opts, |c| {
+        let mut prev = previous.borrow_mut();
+        let map = match prev.as_ref() {
+            None => map_of_pullback(phi, psi, c, Some(&samples.vertices))?,
+            Some(images) => {
+                let (kx, ky) = (c.nrows(), c.ncols());
+                let reference = mul(psi.subcols(0, ky), c.transpose());
+                let query = Mat::from_fn(samples.len(), kx, |s, a| phi[(samples.vertices[s], a)]);
+                let coarse = CoarseMap { x: &positions, y: near.y, samples: &own, images, y_cells };
+                nearest_neighbors_near(reference.as_ref(), query.as_ref(), &coarse, near.cells)?
+            }
+        };
+        *prev = Some(map.clone());
+        Ok(map)
+    })
+}
+
 fn zoomout_iterations(
     phi: MatRef<f64>,
     psi: MatRef<f64>,
     samples: &Samples,
-    mut c: Mat<f64>,
+    c: Mat<f64>,
     block: Option<DescriptorBlock>,
     opts: &ZoomOutOptions,
 ) -> Result<Mat<f64>> {
+    zoomout_loop(phi, psi, samples, c, opts, |c| map_of_pullback_with(phi, psi, c, block, Some(&samples.vertices)))
+}
+
+/// The ZoomOut loop: the map of the samples by `map_of` (C_yx → the vertex of Y of every sample),
+/// then the pull-back map of the next size, until K.
+fn zoomout_loop(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    samples: &Samples,
+    mut c: Mat<f64>,
+    opts: &ZoomOutOptions,
+    map_of: impl Fn(MatRef<f64>) -> Result<Vec<usize>>,
+) -> Result<Mat<f64>> {
     let mut k = c.nrows();
     while k < opts.k_final {
-        let map = map_of_pullback_with(phi, psi, c.as_ref(), block, Some(&samples.vertices))?;
+        let map = map_of(c.as_ref())?;
         k = (k + opts.step).min(opts.k_final);
         c = pullback(phi, psi, samples, &map, k, k)?;
     }

@@ -83,12 +83,14 @@ pub struct AxiomaticPipeline {
     pub near: NearSearch,
 }
 
-/// The search of the final point maps (X → Y and Y → X) on large pairs: above `above_pairs`
-/// vertex pairs n · m, every vertex is matched among the vertices of the other shape in the
-/// `cells` Voronoi cells (of the `refine.samples` farthest-point samples) nearest to the image
-/// of its own sample ([`crate::pointwise::nearest_neighbors_near`]); below it, exactly. The exact
-/// search costs O(n · m · k): 2·10¹³ flops for the 330-dimensional embedding of the polish at
-/// 250k vertices per shape.
+/// The searches of the pipeline on large pairs. Above `above_pairs` vertex pairs n · m (with
+/// positions on both shapes and samples on): the ZoomOut iterations (probes and final) match
+/// each sample of X near its previous image only ([`crate::refine::zoomout_fmap_near`]), and
+/// every point map of all vertices (the probes' maps, the final X → Y and Y → X maps) matches
+/// each vertex among the vertices of the other shape in the `cells` Voronoi cells nearest to the
+/// image of its own sample ([`crate::pointwise::nearest_neighbors_near`]). Below it, every
+/// search is exact. The exact searches cost O(n · m · k): 2·10¹³ flops for the 330-dimensional
+/// embedding of the polish at 250k vertices per shape, 10¹⁴ at 840k.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct NearSearch {
     /// n · m above which the search is restricted (the default 2·10⁹, about 45k × 45k vertices,
@@ -261,6 +263,21 @@ pub fn axiomatic_pipeline(
     stages.push(("functional maps".to_string(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
     let probe_samples = samples_of(x, p.probe.samples)?;
+    // Large pairs: every search restricted to samples or near the samples' map (NearSearch).
+    let near_positions = match (x.positions(), y.positions()) {
+        (Some(px), Some(py))
+            if (px.len() as u64).saturating_mul(py.len() as u64) > p.near.above_pairs
+                && p.probe.samples > 0
+                && p.refine.samples > 0 =>
+        {
+            Some(refine::Near { x: px, y: py, cells: p.near.cells })
+        }
+        _ => None,
+    };
+    let probe_refs = match near_positions {
+        Some(_) if fits.len() > 1 => Some(samples_of(y, p.probe.samples)?),
+        _ => None,
+    };
     let scale = (y.basis.mass.iter().sum::<f64>() / x.basis.mass.iter().sum::<f64>()).sqrt();
     // The candidates are probed independently, in parallel.
     let (tx, py, ny) = (x.triangles(), y.positions(), y.normals());
@@ -272,7 +289,16 @@ pub fn axiomatic_pipeline(
                 None
             } else {
                 let o = ZoomOutOptions { k_final: p.probe.k_final.max(k), step: p.probe.step };
-                Some(refine::zoomout(phi, psi, &probe_samples, c.as_ref(), &o)?)
+                match (&near_positions, &probe_refs) {
+                    (Some(near), Some(sy)) => {
+                        let ys = &sy.vertices;
+                        let c = refine::zoomout_fmap_near(phi, psi, &probe_samples, ys, c.as_ref(), &o, near)?;
+                        let (xs, ys) = (&probe_samples.vertices, &sy.vertices);
+                        let map = refine::map_of_pullback_near(phi, psi, c.as_ref(), xs, ys, near)?;
+                        Some((c, map))
+                    }
+                    _ => Some(refine::zoomout(phi, psi, &probe_samples, c.as_ref(), &o)?),
+                }
             };
             let (distortion, orientation) = match (&probe, tx, py, ny) {
                 (Some((_, m)), Some(tx), Some(py), Some(ny)) => {
@@ -304,12 +330,6 @@ pub fn axiomatic_pipeline(
         (true, Some(c)) => c,
         _ => c_fit.clone(),
     };
-    let near_positions = match (x.positions(), y.positions()) {
-        (Some(px), Some(py)) if (px.len() as u64).saturating_mul(py.len() as u64) > p.near.above_pairs => {
-            Some(refine::Near { x: px, y: py, cells: p.near.cells })
-        }
-        _ => None,
-    };
     let mut near_samples = None;
     let (c_yx, map_xy) = if p.refine.k_final == 0 {
         let unrefined = (c_fit.clone(), refine::map_of_pullback(phi, psi, c_fit.as_ref(), None)?);
@@ -334,7 +354,13 @@ pub fn axiomatic_pipeline(
                 let o = ZoomOutOptions { k_final: p.refine.k_final.max(c_start.nrows()), step: p.refine.step };
                 if p.polish > 0 {
                     // The polish reads the point map off itself.
-                    (refine::zoomout_fmap(phi, psi, &sx, c_start.as_ref(), &o)?, None)
+                    let c = match (&near_positions, &sy) {
+                        (Some(near), Some(sy)) => {
+                            refine::zoomout_fmap_near(phi, psi, &sx, &sy.vertices, c_start.as_ref(), &o, near)?
+                        }
+                        _ => refine::zoomout_fmap(phi, psi, &sx, c_start.as_ref(), &o)?,
+                    };
+                    (c, None)
                 } else {
                     let (c, m) = refine::zoomout(phi, psi, &sx, c_start.as_ref(), &o)?;
                     (c, Some(m))
