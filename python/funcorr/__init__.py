@@ -1,0 +1,358 @@
+"""funcorr: dense shape correspondence with functional maps, from Python.
+
+Bindings of the funcorr Rust library (the same code as the ``funcorr`` command-line tool).
+Notation follows Kovnatsky et al. (CVPR 2015): the source shape X has n vertices, the target Y
+has m; Φ (n × k) and Ψ (m × k) are their Laplacian eigenbases with Φᵀ diag(A_X) Φ = I.
+
+Direction conventions (the same everywhere in funcorr):
+
+* ``map_xy`` has length n: ``map_xy[i]`` is the vertex of Y matched to vertex i of X (the
+  ``map.txt`` of ``funcorr match``); ``map_yx`` has length m, the other way.
+* A functional map ``C`` (k_Y × k_X) maps coefficients of a function on X to coefficients on Y:
+  ``g ≈ Ψ C Φᵀ diag(A_X) f``.
+
+Shapes are given as a file path, a tuple ``(V, F)`` (V (n, 3) any float dtype, F (f, 3) int32 or
+int64, 0-based, any memory order; F = None for a point cloud), an (n, d) array of points, or a
+:class:`PreparedShape` (shape + Laplacian + eigenbasis, computed once by :func:`prepare`).
+
+Every computation releases the GIL and runs on its own rayon pool of
+``set_num_threads(n)`` / ``$FUNCORR_NUM_THREADS`` threads (default: every core), so Python
+threads and Ray workers run in parallel without oversubscribing the machine.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _funcorr
+from ._funcorr import PreparedShape, get_num_threads, set_num_threads
+
+__version__ = _funcorr.__version__
+
+__all__ = [
+    "PreparedShape",
+    "MatchResult",
+    "read_mesh",
+    "write_mesh",
+    "read_vts",
+    "cotangent_laplacian",
+    "knn_laplacian",
+    "cloud_laplacian",
+    "stiffness",
+    "prepare",
+    "eigenbasis",
+    "hks",
+    "wks",
+    "wks_recipe",
+    "hkm",
+    "persistence_segments",
+    "regions",
+    "match",
+    "icp_refine",
+    "zoomout_refine",
+    "maps_from_fmap",
+    "fmap_from_map",
+    "geodesic_distances",
+    "geodesic_pairs",
+    "geodesic_all_pairs",
+    "evaluate",
+    "cumulative_curve",
+    "render_pair",
+    "render",
+    "set_num_threads",
+    "get_num_threads",
+]
+
+ShapeLike = Any  # path | (V, F) | (n, d) array | PreparedShape
+BasisLike = Any  # PreparedShape | (eigenvalues, eigenvectors, mass)
+
+
+def read_mesh(path) -> Tuple[np.ndarray, np.ndarray]:
+    """Reads a mesh or point cloud (OFF, OBJ, PLY, XYZ/CSV/TXT/PTS, NPY).
+
+    Returns ``(V, F)``: V (n, 3) float64, F (f, 3) int64, 0-based ((0, 3) for point clouds).
+    Malformed files raise ValueError naming the file and line; missing ones FileNotFoundError.
+    """
+    return _funcorr.read_mesh(path)
+
+
+def write_mesh(path, V, F=None, colors=None) -> None:
+    """Writes V (n, 3), F (f, 3) and optional colours (n, 3) uint8 as OFF, PLY or NPY (by
+    extension), atomically (a temporary file renamed into place)."""
+    _funcorr.write_mesh(path, V, F, colors)
+
+
+def read_vts(path, n: Optional[int] = None) -> np.ndarray:
+    """Reads a 1-based vertex list (.vts, one id per line) as 0-based int64 indices, each < n
+    when n is given."""
+    return _funcorr.read_vts(path, n)
+
+
+def _csr(parts, n: int):
+    import scipy.sparse as sp
+
+    indptr, indices, data = parts
+    return sp.csr_matrix((data, indices, indptr), shape=(n, n))
+
+
+def cotangent_laplacian(V, F):
+    """Cotangent Laplacian of a triangle mesh (paper eq. (2)), intrinsically mollified for
+    degenerate triangles.
+
+    Returns ``(W, A)``: W (n × n scipy.sparse.csr_matrix, symmetric positive semi-definite,
+    zero row sums) and A (n,) the lumped (barycentric) vertex areas; L = diag(A)⁻¹ W.
+    """
+    parts, mass = _funcorr.cotangent_laplacian(V, F)
+    return _csr(parts, len(mass)), mass
+
+
+def knn_laplacian(points, k: int = 10, sigma: Optional[float] = None, vertex_weights: str = "identity"):
+    """The paper's kNN graph Laplacian (eq. (1)) of points (n, d): symmetric K nearest
+    neighbours, Gaussian weights with self-tuning σ (or fixed ``sigma``), A = I
+    (``vertex_weights="identity"``) or A = D (``"degree"``). Returns ``(W csr, A)``."""
+    parts, mass = _funcorr.knn_laplacian(points, k, sigma, vertex_weights)
+    return _csr(parts, len(mass)), mass
+
+
+def cloud_laplacian(points, k: int = 30):
+    """The point-cloud Laplacian (Sharp & Crane 2020) of 3-D points (n, 3) from local
+    Delaunay fans over k neighbours. Returns ``(W csr, A)``."""
+    parts, mass = _funcorr.cloud_laplacian(points, k)
+    return _csr(parts, len(mass)), mass
+
+
+def stiffness(shape: PreparedShape):
+    """The stiffness matrix W (n × n csr) of a prepared shape's Laplacian."""
+    return _csr(shape._stiffness(), shape.n)
+
+
+def prepare(shape: ShapeLike, k: int = 200, cache_dir=None, **laplacian) -> PreparedShape:
+    """A shape with its Laplacian and first k eigenpairs, computed once for many pairs.
+
+    ``shape``: a path, ``(V, F)``, ``(V, None)`` / an (n, d) array of points.
+    ``laplacian``: ``laplacian="auto"|"cotan"|"cloud"|"knn"`` (auto: cotangent for meshes, the
+    point-cloud Laplacian for 3-D points, kNN for other dimensions), ``cloud_neighbours=30``,
+    ``knn=10``, ``vertex_weights="identity"|"degree"``, ``sigma=None``.
+    ``cache_dir``: a directory (or True for ``$FUNCORR_CACHE_DIR`` / ``~/.cache/funcorr``) where
+    eigenbases are cached, keyed by the Laplacian; None (default): no cache.
+
+    The result has ``.eigenvalues`` (k), ``.eigenvectors`` Φ (n × k), ``.mass`` A (n),
+    ``.vertices``, ``.faces``, ``.n``, ``.k``; it pickles (for Ray's object store).
+    """
+    return _funcorr.prepare(shape, k, cache_dir, **laplacian)
+
+
+def eigenbasis(V, F=None, k: int = 100, **options) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """First k eigenpairs of W φ = λ A φ (shift-invert block Lanczos, verified residuals,
+    deterministic signs). V (n, 3) (or (n, d) points with F = None), F (f, 3).
+
+    Returns ``(evals (k,), evecs Φ (n, k), mass A (n,))`` with Φᵀ diag(A) Φ = I. Options as
+    :func:`prepare`."""
+    p = prepare((V, F), k=k, **options)
+    return p.eigenvalues, p.eigenvectors, p.mass
+
+
+def hks(basis: BasisLike, count: int = 100, times=None, normalize: bool = True) -> np.ndarray:
+    """Heat kernel signatures (n, q): ``count`` times log-spaced as Sun et al. (or ``times``),
+    scale-normalized. ``basis``: a PreparedShape or (eigenvalues, eigenvectors, mass)."""
+    return _funcorr.hks(basis, count, times, normalize)
+
+
+def wks(basis: BasisLike, count: int = 100, normalize: bool = True) -> np.ndarray:
+    """Wave kernel signatures (n, count) from the whole basis, scale-normalized."""
+    return _funcorr.wks(basis, count, normalize)
+
+
+def wks_recipe(basis: BasisLike, energies: int = 100, eigenpairs: int = 128, keep_every: int = 2) -> np.ndarray:
+    """The WKS of ``match``'s default data: ``energies`` energies from the first ``eigenpairs``
+    eigenpairs, every ``keep_every``-th kept (pyFM's pipeline; 50 functions by default)."""
+    return _funcorr.wks_recipe(basis, energies, eigenpairs, keep_every)
+
+
+def hkm(basis: BasisLike, seeds, count: int = 10, times=None, normalize: bool = True) -> np.ndarray:
+    """Heat kernel maps k_t(p, ·) (n, len(seeds) · times), seed-major, for seed vertices p."""
+    return _funcorr.hkm(basis, seeds, count, times, normalize)
+
+
+def persistence_segments(shape: PreparedShape, **options) -> np.ndarray:
+    """Persistence-based segmentation of a prepared shape: labels 1..s (n,) int64. Options:
+    ``seg_function="hks"|"agd"``, ``threshold=0.1``, ``hks_time=0.25``."""
+    return _funcorr.persistence_segments(shape, **options)
+
+
+def regions(X: PreparedShape, Y: PreparedShape, kind: str = "persistence", labels_x=None, labels_y=None, **options):
+    """Matched regions of two prepared shapes as indicator functions: ``(F (n, q), G (m, q))``,
+    column j of F and G the same region. ``kind``: ``"persistence"`` (segments matched by their
+    signatures), ``"mser"`` (ShapeMSER, meshes), ``"labels"`` (``labels_x``, ``labels_y``
+    per-vertex labels, matched by value)."""
+    return _funcorr.regions(X, Y, kind, labels_x, labels_y, **options)
+
+
+@dataclass
+class MatchResult:
+    """The result of :func:`match`.
+
+    ``map_xy`` (n,) int64: for every vertex i of X the vertex of Y (``map.txt`` of
+    ``funcorr match``). ``map_yx`` (m,): for every vertex of Y a vertex of X (the pull-back of
+    the final functional map; used to transfer colours from X to Y). ``C`` (k_Y × k_X): the
+    final functional map, X coefficients → Y coefficients; ``C_method`` the method's own before
+    refinement; ``coefficients`` (A, B) of the completion method's subspace form (k' × k), else
+    None. ``X``, ``Y``: the prepared shapes (reusable). ``report``: options, sizes, solver and
+    per-stage seconds (the report.json of ``funcorr match``).
+    """
+
+    map_xy: np.ndarray
+    map_yx: np.ndarray
+    C: np.ndarray
+    C_method: np.ndarray
+    coefficients: Optional[Tuple[np.ndarray, np.ndarray]]
+    stages: List[Tuple[str, float]]
+    report: Dict[str, Any]
+    q: int
+    X: PreparedShape = field(repr=False)
+    Y: PreparedShape = field(repr=False)
+
+    def evaluate(self, gt_x, gt_y, gt_y_sym=None, geodesics: str = "exact") -> Dict[str, Any]:
+        """Geodesic errors of ``map_xy`` against ground truth (see :func:`evaluate`)."""
+        return evaluate(self.map_xy, self.Y, gt_x, gt_y, gt_y_sym, geodesics)
+
+    def render(self, width: int = 1600, height: int = 900, view: Tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+        """X coloured by position beside Y coloured through ``map_yx``: (h, w, 3) uint8."""
+        return render_pair(self.X, self.Y, self.map_yx, width, height, view)
+
+
+def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str, Tuple[Any, Any]] = "wks", **options) -> MatchResult:
+    """Dense correspondence X → Y: the pipeline of ``funcorr match`` (same defaults, same map).
+
+    ``X``, ``Y``: paths, ``(V, F)`` tuples, point arrays or PreparedShapes (a raw shape is
+    prepared with the eigenpairs the options need, 200 by default, no cache unless
+    ``cache_dir=``). ``method``: ``"axiomatic"`` (default), ``"fmap"`` (eq. (5)),
+    ``"pokrass"`` (eq. (6)), ``"coupled"`` (eq. (7)), ``"completion"`` (eqs. (8)–(11), see
+    ``form``). ``data``: a ``--data`` spec (``"wks"``, ``"wks:100"``, ``"hks:N"``,
+    ``"segments:X.seg,Y.seg"``, ``"persistence"``, ``"mser"``, ``"landmarks:pairs.txt"``,
+    ``"rich"``, ``"matrix:F.npy,G.npy"``) or a tuple ``(F (n, q), G (m, q))``.
+
+    ``options`` are the flags of ``funcorr match`` with ``_`` for ``-``: ``k``, ``kprime``,
+    ``candidates``, ``orientation`` (``"preserve"|"reverse"|"ignore"``), ``signed``,
+    ``w_descriptors``, ``w_laplacian``, ``w_commutativity``, ``w_orientation``, ``mask``,
+    ``refine`` (``"none"|"icp"|"zoomout"``), ``zoomout_to``, ``zoomout_step``,
+    ``zoomout_samples``, ``polish``, ``commutativity``, ``form``
+    (``"subspace"|"fixed-rank"|"low-rank"|"low-norm"``), ``scaling``, ``mu1``…``mu4``, ``xi``,
+    ``init``, ``init_k``, ``optimizer``, ``max_iterations``, ``rel_tol``, ``extract``,
+    ``refine_k``, ``icp_iterations``, ``completion_commutativity``,
+    ``completion_commutativity_k``, ``completion_prior``; the Laplacian options of
+    :func:`prepare`; ``seg_function``, ``threshold``, ``hks_time``; ``cache_dir``. An unknown
+    keyword raises TypeError; a bad value ValueError naming it.
+
+    Returns a :class:`MatchResult`; ``result.map_xy[i]`` is the vertex of Y matched to vertex i
+    of X.
+    """
+    opts = dict(options)
+    opts["method"] = method
+    r = _funcorr.match_shapes(X, Y, data, opts)
+    return MatchResult(
+        map_xy=r["map_xy"],
+        map_yx=r["map_yx"],
+        C=r["C"],
+        C_method=r["C_method"],
+        coefficients=r["coefficients"],
+        stages=list(r["stages"]),
+        report=json.loads(r["report"]),
+        q=r["q"],
+        X=r["X"],
+        Y=r["Y"],
+    )
+
+
+def icp_refine(X: PreparedShape, Y: PreparedShape, C, iterations: int = 10) -> Tuple[np.ndarray, np.ndarray]:
+    """ICP refinement (Ovsjanikov et al. 2012) of C (k × k, X → Y coefficients): alternates the
+    point map (nearest rows of Ψ_k C for the rows of Φ_k) and the orthonormal C. Returns
+    ``(C, map_xy)``."""
+    return _funcorr.icp_refine(X, Y, C, iterations)
+
+
+def zoomout_refine(X: PreparedShape, Y: PreparedShape, C, k_final: int, step: int = 1) -> Tuple[np.ndarray, np.ndarray]:
+    """ZoomOut (Melzi et al. 2019) of C (k × k, X → Y coefficients) up to k_final × k_final in
+    steps of ``step``, every vertex. Returns ``(C, map_xy)``."""
+    return _funcorr.zoomout_refine(X, Y, C, k_final, step)
+
+
+def maps_from_fmap(X: PreparedShape, Y: PreparedShape, C) -> Tuple[np.ndarray, np.ndarray]:
+    """Point maps of a functional map C (k × k, X → Y coefficients): ``(map_xy (n,), map_yx (m,))``
+    by nearest neighbours in the spectral embedding."""
+    return _funcorr.maps_from_fmap(X, Y, C)
+
+
+def fmap_from_map(X: PreparedShape, Y: PreparedShape, map_yx, k: int) -> np.ndarray:
+    """The functional map C = Ψ_kᵀ diag(A_Y) Π Φ_k (k × k, X → Y coefficients) of a point map Y → X
+    (``map_yx`` (m,), vertices of X)."""
+    return _funcorr.fmap_from_map(X, Y, map_yx, k)
+
+
+def geodesic_distances(mesh: ShapeLike, sources, method: str = "exact") -> np.ndarray:
+    """Geodesic distances on a triangle mesh from ``sources`` to every vertex.
+
+    ``method``: ``"exact"`` (polyhedral, MMP window propagation), ``"heat"`` (heat method,
+    ~2–4 % error), ``"dijkstra"`` (mesh edges, upper bound). A single source (an int) gives
+    (n,), a list of s sources (n, s)."""
+    if np.isscalar(sources):
+        return _funcorr.geodesic_distances(mesh, np.array([sources]), method)[:, 0]
+    return _funcorr.geodesic_distances(mesh, sources, method)
+
+
+def geodesic_pairs(mesh: ShapeLike, pairs, method: str = "exact") -> np.ndarray:
+    """d(s, t) for every row (s, t) of ``pairs`` (p, 2); exact queries stop at their target."""
+    return _funcorr.geodesic_pairs(mesh, pairs, method)
+
+
+def geodesic_all_pairs(mesh: ShapeLike, out=None, method: str = "exact", chunk: int = 64) -> np.ndarray:
+    """All-pairs geodesic distances written into ``out`` (n × n float64, writable, e.g.
+    ``np.memmap(path, dtype=np.float64, mode="w+", shape=(n, n))``; None: a new array), row i the
+    distances from vertex i, ``chunk`` sources at a time. Returns ``out``."""
+    if out is None:
+        n = mesh.n if isinstance(mesh, PreparedShape) else _n_vertices(mesh)
+        out = np.empty((n, n), dtype=np.float64)
+    _funcorr.geodesic_all_pairs(mesh, out, method, chunk)
+    return out
+
+
+def _n_vertices(shape: ShapeLike) -> int:
+    if isinstance(shape, tuple):
+        return np.asarray(shape[0]).shape[0]
+    if isinstance(shape, np.ndarray):
+        return shape.shape[0]
+    return read_mesh(shape)[0].shape[0]
+
+
+def evaluate(map_xy, Y: ShapeLike, gt_x, gt_y, gt_y_sym=None, geodesics: str = "exact") -> Dict[str, Any]:
+    """Princeton-protocol errors of a map X → Y (``map_xy`` (n,), vertices of Y).
+
+    ``gt_x[i]`` on X corresponds to ``gt_y[i]`` on Y (0-based; ``read_vts`` reads the 1-based
+    .vts files), ``gt_y_sym`` the mirrored counterparts (symmetric flips allowed). Error of
+    point i: d_Y(map_xy[gt_x[i]], gt_y[i]) / √area(Y) (eq. (12)).
+
+    Returns a dict: ``mean``, ``at_005``, ``at_010``, ``at_025`` (fractions ≤ 0.05, 0.10, 0.25),
+    ``errors`` (per point), ``thresholds`` and ``curve`` (the cumulative curve), ``symmetric``,
+    ``geodesics``."""
+    return _funcorr.evaluate(map_xy, Y, gt_x, gt_y, gt_y_sym, geodesics)
+
+
+def cumulative_curve(errors, thresholds=None) -> Tuple[np.ndarray, np.ndarray]:
+    """``(thresholds, fraction of errors ≤ each)``; thresholds default to 0, 0.005, …, 0.25."""
+    return _funcorr.cumulative_curve(errors, thresholds)
+
+
+def render_pair(X: ShapeLike, Y: ShapeLike, map_yx, width: int = 1600, height: int = 900, view: Tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+    """X (left) coloured by position and Y (right) coloured by pulling X's colours back through
+    ``map_yx`` (m,), CPU rasterizer: an (height, width, 3) uint8 image. ``view``: (azimuth,
+    elevation) in degrees; (0, 0) looks along −Z with +Y up."""
+    return _funcorr.render_pair(X, Y, map_yx, width, height, tuple(view))
+
+
+def render(shape: ShapeLike, colors=None, width: int = 800, height: int = 900, view: Tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+    """One shape (colours (n, 3) uint8, default by position): (height, width, 3) uint8."""
+    return _funcorr.render(shape, colors, width, height, tuple(view))

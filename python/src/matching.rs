@@ -1,0 +1,585 @@
+//! Prepared shapes (shape + Laplacian + eigenbasis, picklable for Ray), `match` and the
+//! point-wise refinements.
+
+use std::sync::Arc;
+
+use faer::Mat;
+use numpy::{PyArray1, PyArray2};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyTuple};
+
+use funcorr::descriptors::Descriptors;
+use funcorr::prepared::{LaplacianChoice, PreparedShape};
+use funcorr::shape::{PointSet, Shape, TriMesh};
+use funcorr::spectral::{Basis, BasisCache};
+
+use crate::arrays::{self, value_error, F64s, I64s};
+use crate::{compute, options};
+
+/// A shape with its Laplacian and its first k eigenpairs, computed once and reused by every
+/// pair it takes part in (`funcorr.prepare`). Pickles to its geometry and basis (the Laplacian
+/// is rebuilt on unpickling, bit for bit), so it can be put in Ray's object store.
+#[pyclass(frozen, module = "funcorr._funcorr", name = "PreparedShape")]
+pub(crate) struct PyPrepared {
+    pub(crate) inner: Arc<PreparedShape>,
+    pub(crate) choice: LaplacianChoice,
+}
+
+#[pymethods]
+impl PyPrepared {
+    /// Number of vertices n.
+    #[getter]
+    fn n(&self) -> usize {
+        self.inner.n()
+    }
+    /// Number of eigenpairs k.
+    #[getter]
+    fn k(&self) -> usize {
+        self.inner.basis.k()
+    }
+    /// Vertex positions (n × 3; for feature point sets the points, n × d).
+    #[getter]
+    fn vertices<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
+        match &self.inner.shape {
+            Shape::Mesh(m) => arrays::points3_out(py, m.vertices()).into_any(),
+            Shape::Points(p) => point_set_out(py, p).into_any(),
+        }
+    }
+    /// Triangles (f × 3, int64; (0, 3) for point clouds).
+    #[getter]
+    fn faces<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<i64>> {
+        match &self.inner.shape {
+            Shape::Mesh(m) => arrays::faces_out(py, m.faces()),
+            Shape::Points(_) => arrays::faces_out(py, &[]),
+        }
+    }
+    /// λ₁ ≤ … ≤ λ_k.
+    #[getter]
+    fn eigenvalues<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        arrays::vec_out(py, self.inner.basis.eigenvalues.clone())
+    }
+    /// Φ (n × k), Φᵀ diag(A) Φ = I.
+    #[getter]
+    fn eigenvectors<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        arrays::mat_out(py, self.inner.basis.eigenvectors.as_ref())
+    }
+    /// A (n): the vertex weights (lumped mass).
+    #[getter]
+    fn mass<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        arrays::vec_out(py, self.inner.basis.mass.clone())
+    }
+    /// The stiffness matrix W as CSR parts (indptr, indices, data) (W is symmetric).
+    fn _stiffness<'py>(&self, py: Python<'py>) -> (I64s<'py>, I64s<'py>, F64s<'py>) {
+        crate::functions::csr_parts(py, &self.inner.laplacian)
+    }
+    /// Whether the shape is a triangle mesh.
+    #[getter]
+    fn is_mesh(&self) -> bool {
+        matches!(self.inner.shape, Shape::Mesh(_))
+    }
+    fn __repr__(&self) -> String {
+        let kind = match &self.inner.shape {
+            Shape::Mesh(m) => format!("mesh, {} faces", m.n_faces()),
+            Shape::Points(p) => format!("{}-D points", p.dim()),
+        };
+        format!("PreparedShape(n={}, {kind}, k={})", self.inner.n(), self.inner.basis.k())
+    }
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyTuple>)> {
+        let f = py.import("funcorr._funcorr")?.getattr("_prepared_from_state")?;
+        let (pts, faces) = match &self.inner.shape {
+            Shape::Mesh(m) => {
+                (arrays::points3_out(py, m.vertices()).into_any(), arrays::faces_out(py, m.faces()).into_any())
+            }
+            Shape::Points(p) => (point_set_out(py, p).into_any(), py.None().into_bound(py)),
+        };
+        let choice = serde_json::to_string(&self.choice).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let b = &self.inner.basis;
+        let args = PyTuple::new(
+            py,
+            [
+                pts,
+                faces,
+                choice.into_pyobject(py)?.into_any(),
+                arrays::vec_out(py, b.eigenvalues.clone()).into_any(),
+                arrays::mat_out(py, b.eigenvectors.as_ref()).into_any(),
+                arrays::vec_out(py, b.mass.clone()).into_any(),
+                arrays::vec_out(py, b.residuals.clone()).into_any(),
+            ],
+        )?;
+        Ok((f, args))
+    }
+}
+
+fn point_set_out<'py>(py: Python<'py>, p: &PointSet) -> Bound<'py, PyArray2<f64>> {
+    use numpy::IntoPyArray;
+    let d = p.dim();
+    numpy::ndarray::Array2::from_shape_fn((p.len(), d), |(i, j)| p.coords()[i * d + j]).into_pyarray(py)
+}
+
+/// Rebuilds a pickled [`PyPrepared`]: the shape, its Laplacian (recomputed, deterministic) and
+/// the stored basis.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn _prepared_from_state(
+    py: Python<'_>,
+    points: &Bound<'_, PyAny>,
+    faces: &Bound<'_, PyAny>,
+    choice: &str,
+    eigenvalues: &Bound<'_, PyAny>,
+    eigenvectors: &Bound<'_, PyAny>,
+    mass: &Bound<'_, PyAny>,
+    residuals: &Bound<'_, PyAny>,
+) -> PyResult<PyPrepared> {
+    let shape = if faces.is_none() {
+        Shape::Points(arrays::points(points, "points")?)
+    } else {
+        Shape::Mesh(arrays::mesh(points, faces, "vertices", "faces")?)
+    };
+    let choice: LaplacianChoice = serde_json::from_str(choice).map_err(|e| value_error("choice", e))?;
+    let basis = Basis {
+        eigenvalues: arrays::vector(eigenvalues, "eigenvalues")?,
+        eigenvectors: arrays::matrix(eigenvectors, "eigenvectors")?,
+        mass: arrays::vector(mass, "mass")?,
+        residuals: arrays::vector(residuals, "residuals")?,
+    };
+    if basis.n() != shape.n_vertices() || basis.mass.len() != basis.n() || basis.eigenvalues.len() != basis.k() {
+        return Err(value_error("eigenvectors", "the basis does not fit the shape"));
+    }
+    let p = compute(py, move || {
+        let (lap, surface) = funcorr::prepared::build_laplacian(&shape, choice)?;
+        Ok(PreparedShape::from_parts(shape, lap, basis, surface))
+    })?;
+    Ok(PyPrepared { inner: Arc::new(p), choice })
+}
+
+/// Laplacian options of `prepare` and `match`, read from a dict (keys `laplacian`,
+/// `cloud_neighbours`, `knn`, `vertex_weights`, `sigma`).
+pub(crate) fn laplacian_choice(opts: &mut options::Opts) -> PyResult<LaplacianChoice> {
+    use funcorr::laplacian::{Bandwidth, KnnOptions, VertexWeights};
+    let kind = opts.string("laplacian")?;
+    let cloud_k = opts.usize("cloud_neighbours")?.unwrap_or(funcorr::cloud::DEFAULT_NEIGHBOURS);
+    let knn_k = opts.usize("knn")?.unwrap_or(10);
+    let weights = opts.string("vertex_weights")?;
+    let sigma = opts.f64("sigma")?;
+    Ok(match kind.as_deref().unwrap_or("auto") {
+        "auto" => LaplacianChoice::Auto,
+        "cotan" | "cotangent" => LaplacianChoice::Cotangent,
+        "cloud" => LaplacianChoice::Cloud { k: cloud_k },
+        "knn" => LaplacianChoice::Knn(KnnOptions {
+            k: knn_k,
+            vertex_weights: match weights.as_deref().unwrap_or("identity") {
+                "identity" => VertexWeights::Identity,
+                "degree" => VertexWeights::Degree,
+                other => {
+                    return Err(value_error("vertex_weights", format!("{other:?}: expected 'identity' or 'degree'")))
+                }
+            },
+            bandwidth: sigma.map_or(Bandwidth::SelfTuning, Bandwidth::Fixed),
+        }),
+        other => {
+            return Err(value_error("laplacian", format!("{other:?}: expected 'auto', 'cotan', 'cloud' or 'knn'")))
+        }
+    })
+}
+
+/// The cache of `cache_dir` (None: no cache; True: the default directory).
+fn cache_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Option<BasisCache>> {
+    let Some(obj) = obj else { return Ok(None) };
+    if obj.is_none() {
+        return Ok(None);
+    }
+    if let Ok(b) = obj.extract::<bool>() {
+        return Ok(if b { BasisCache::default_dir().map(BasisCache::new) } else { None });
+    }
+    match arrays::path_arg(obj) {
+        Some(p) => Ok(Some(BasisCache::new(p))),
+        None => Err(value_error("cache_dir", "expected a directory path, True (the default directory) or None")),
+    }
+}
+
+fn check_k(shape: &Shape, k: usize, name: &str, what: &str) -> PyResult<()> {
+    let n = shape.n_vertices();
+    if k == 0 || k >= n {
+        return Err(value_error(
+            name,
+            format!("{what} asks for {k} eigenpairs, but the shape has n = {n} vertices (need 1 ≤ k < n)"),
+        ));
+    }
+    Ok(())
+}
+
+/// `prepare(shape, k, cache_dir, **laplacian options)`.
+#[pyfunction]
+#[pyo3(signature = (shape, k=200, cache_dir=None, **kwargs))]
+fn prepare(
+    py: Python<'_>,
+    shape: &Bound<'_, PyAny>,
+    k: usize,
+    cache_dir: Option<&Bound<'_, PyAny>>,
+    kwargs: Option<&Bound<'_, PyDict>>,
+) -> PyResult<PyPrepared> {
+    let mut opts = options::Opts::new(kwargs)?;
+    let choice = laplacian_choice(&mut opts)?;
+    opts.finish()?;
+    let cache = cache_arg(cache_dir)?;
+    let s = arrays::shape(shape, "shape")?;
+    check_k(&s, k, "k", "k")?;
+    let p = compute(py, move || PreparedShape::new(s, choice, k, cache.as_ref()))?;
+    Ok(PyPrepared { inner: Arc::new(p), choice })
+}
+
+/// A shape argument of `match`: prepared already, or to be prepared with `k` eigenpairs.
+enum Side {
+    Ready(Arc<PreparedShape>),
+    Raw(Shape),
+}
+
+fn side(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Side> {
+    if let Ok(p) = obj.cast::<PyPrepared>() {
+        return Ok(Side::Ready(p.get().inner.clone()));
+    }
+    Ok(Side::Raw(arrays::shape(obj, name)?))
+}
+
+fn prepared_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Arc<PreparedShape>> {
+    obj.cast::<PyPrepared>()
+        .map(|p| p.get().inner.clone())
+        .map_err(|_| value_error(name, "expected a PreparedShape (funcorr.prepare(shape, k))"))
+}
+
+/// A basis argument: a PreparedShape or a tuple (eigenvalues, eigenvectors, mass).
+pub(crate) fn basis_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Basis> {
+    if let Ok(p) = obj.cast::<PyPrepared>() {
+        return Ok(p.get().inner.basis.clone());
+    }
+    let t = obj
+        .cast::<PyTuple>()
+        .map_err(|_| value_error(name, "expected a PreparedShape or a tuple (eigenvalues, eigenvectors, mass)"))?;
+    if t.len() != 3 {
+        return Err(value_error(name, "expected a tuple (eigenvalues, eigenvectors, mass)"));
+    }
+    let evals = arrays::vector(&t.get_item(0)?, &format!("{name}[0] (eigenvalues)"))?;
+    let evecs = arrays::matrix(&t.get_item(1)?, &format!("{name}[1] (eigenvectors)"))?;
+    let mass = arrays::vector(&t.get_item(2)?, &format!("{name}[2] (mass)"))?;
+    if evecs.ncols() != evals.len() || evecs.nrows() != mass.len() || evals.is_empty() {
+        return Err(value_error(
+            name,
+            format!(
+                "eigenvectors {}×{} do not fit {} eigenvalues and {} weights",
+                evecs.nrows(),
+                evecs.ncols(),
+                evals.len(),
+                mass.len()
+            ),
+        ));
+    }
+    if let Some(i) = mass.iter().position(|a| *a <= 0.0) {
+        return Err(value_error(&format!("{name}[2] (mass)"), format!("entry {i} is not positive")));
+    }
+    let k = evals.len();
+    Ok(Basis { eigenvalues: evals, eigenvectors: evecs, mass, residuals: vec![0.0; k] })
+}
+
+/// Data F on X and G on Y: a `--data` spec string or a tuple of two (n × q), (m × q) arrays.
+enum Data {
+    Spec(funcorr::descriptors::spec::PairDataSpec),
+    Given(Descriptors, Descriptors),
+}
+
+fn data_arg(obj: &Bound<'_, PyAny>) -> PyResult<Data> {
+    if let Ok(s) = obj.extract::<String>() {
+        let spec =
+            s.parse::<funcorr::descriptors::spec::PairDataSpec>().and_then(|s| s.standalone()).map_err(crate::to_py)?;
+        return Ok(Data::Spec(spec));
+    }
+    let t = obj
+        .cast::<PyTuple>()
+        .map_err(|_| value_error("data", "expected a spec string (e.g. 'wks') or a tuple (F, G) of arrays"))?;
+    if t.len() != 2 {
+        return Err(value_error("data", "expected a tuple (F, G): F (n × q) on X, G (m × q) on Y"));
+    }
+    let f = arrays::matrix(&t.get_item(0)?, "data[0] (F)")?;
+    let g = arrays::matrix(&t.get_item(1)?, "data[1] (G)")?;
+    if f.ncols() != g.ncols() || f.ncols() == 0 {
+        return Err(value_error(
+            "data",
+            format!("F has {} columns and G {}: need the same q ≥ 1", f.ncols(), g.ncols()),
+        ));
+    }
+    let names: Vec<String> = (0..f.ncols()).map(|j| format!("column {j}")).collect();
+    Ok(Data::Given(
+        Descriptors::new(f, names.clone()).map_err(crate::to_py)?,
+        Descriptors::new(g, names).map_err(crate::to_py)?,
+    ))
+}
+
+/// `match(X, Y, data, options)`: the whole pipeline of `funcorr match`. Returns a dict.
+#[pyfunction]
+#[pyo3(signature = (x, y, data, options=None))]
+fn match_shapes<'py>(
+    py: Python<'py>,
+    x: &Bound<'py, PyAny>,
+    y: &Bound<'py, PyAny>,
+    data: &Bound<'py, PyAny>,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    // Everything is checked before any work: data, options, shapes.
+    let data = data_arg(data)?;
+    let rich = match &data {
+        Data::Spec(s) => s.is_rich(),
+        Data::Given(..) => true,
+    };
+    let mut o = options::Opts::new(options)?;
+    let (opts, basis_k, who) = options::match_options(&mut o, rich)?;
+    let choice = laplacian_choice(&mut o)?;
+    let seg = options::segmentation(&mut o)?;
+    let cache = cache_arg(o.take("cache_dir").as_ref())?;
+    o.finish()?;
+    let (sx, sy) = (side(x, "X")?, side(y, "Y")?);
+    for (s, name) in [(&sx, "X"), (&sy, "Y")] {
+        if let Side::Raw(shape) = s {
+            check_k(shape, basis_k, &who, &format!("{who} (for {name})"))?;
+        }
+    }
+    if let Data::Given(f, g) = &data {
+        let n_of = |s: &Side| match s {
+            Side::Ready(p) => p.n(),
+            Side::Raw(s) => s.n_vertices(),
+        };
+        if f.n() != n_of(&sx) || g.n() != n_of(&sy) {
+            return Err(value_error(
+                "data",
+                format!("F has {} rows and G {}, X has {} vertices and Y {}", f.n(), g.n(), n_of(&sx), n_of(&sy)),
+            ));
+        }
+    }
+    let opts_run = opts.clone();
+    let (px, py_, f, g, r) = compute(py, move || {
+        let prep = |s: Side| -> funcorr::Result<Arc<PreparedShape>> {
+            match s {
+                Side::Ready(p) => Ok(p),
+                Side::Raw(shape) => {
+                    // As `funcorr match`: the basis as computed (or cached), not truncated.
+                    let (lap, surface) = funcorr::prepared::build_laplacian(&shape, choice)?;
+                    let (basis, _) = funcorr::spectral::eigen_basis_cached(
+                        &lap,
+                        &funcorr::spectral::SpectralOptions::new(basis_k),
+                        cache.as_ref(),
+                        None,
+                    )?;
+                    Ok(Arc::new(PreparedShape::from_parts(shape, lap, basis, surface)))
+                }
+            }
+        };
+        let (px, py_) = rayon::join(|| prep(sx), || prep(sy));
+        let (px, py_) = (px?, py_?);
+        let (f, g) = match data {
+            Data::Spec(spec) => spec.functions(px.parts(), py_.parts(), &seg)?,
+            Data::Given(f, g) => (f, g),
+        };
+        let r = funcorr::matching::run_prepared(&px, &py_, &f, &g, &opts_run)?;
+        Ok((px, py_, f, g, r))
+    })?;
+    let out = PyDict::new(py);
+    out.set_item("map_xy", arrays::index_out(py, &r.map_xy))?;
+    out.set_item("map_yx", arrays::index_out(py, &r.map_yx))?;
+    out.set_item("C", arrays::mat_out(py, r.c.as_ref()))?;
+    out.set_item("C_method", arrays::mat_out(py, r.c_method.as_ref()))?;
+    match &r.coefficients {
+        Some((a, b)) => {
+            out.set_item("coefficients", (arrays::mat_out(py, a.as_ref()), arrays::mat_out(py, b.as_ref())))?
+        }
+        None => out.set_item("coefficients", py.None())?,
+    }
+    let stages = PyList::empty(py);
+    for (name, secs) in &r.stages {
+        stages.append((name, secs))?;
+    }
+    out.set_item("stages", stages)?;
+    let report = r.report(&opts, px.n(), py_.n(), f.q(), basis_k);
+    out.set_item("report", funcorr::io::to_json_sorted(&report).map_err(crate::to_py)?)?;
+    out.set_item("q", f.q())?;
+    let _ = g;
+    out.set_item("X", PyPrepared { inner: px, choice })?;
+    out.set_item("Y", PyPrepared { inner: py_, choice })?;
+    Ok(out)
+}
+
+fn fmap_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Mat<f64>> {
+    let c = arrays::matrix(obj, name)?;
+    if c.nrows() != c.ncols() || c.nrows() == 0 {
+        return Err(value_error(
+            name,
+            format!("expected a square k × k functional map, got {} × {}", c.nrows(), c.ncols()),
+        ));
+    }
+    Ok(c)
+}
+
+fn check_c_fits(c: &Mat<f64>, x: &PreparedShape, y: &PreparedShape, name: &str) -> PyResult<()> {
+    let k = c.nrows();
+    if k > x.basis.k() || k > y.basis.k() {
+        return Err(value_error(
+            name,
+            format!("a {k} × {k} map needs {k} eigenpairs per shape; X has {} and Y {}", x.basis.k(), y.basis.k()),
+        ));
+    }
+    Ok(())
+}
+
+type MapOut<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<i64>>);
+
+/// ICP refinement (Ovsjanikov et al. 2012) of C (k × k, X → Y coefficients).
+#[pyfunction]
+#[pyo3(signature = (x, y, c, iterations=10))]
+fn icp_refine<'py>(
+    py: Python<'py>,
+    x: &Bound<'py, PyAny>,
+    y: &Bound<'py, PyAny>,
+    c: &Bound<'py, PyAny>,
+    iterations: usize,
+) -> PyResult<MapOut<'py>> {
+    let (px, py_) = (prepared_arg(x, "X")?, prepared_arg(y, "Y")?);
+    let c = fmap_arg(c, "C")?;
+    check_c_fits(&c, &px, &py_, "C")?;
+    let (c, map) = compute(py, move || {
+        let o = funcorr::pointwise::IcpOptions { max_iterations: iterations };
+        funcorr::pointwise::icp(px.basis.eigenvectors.as_ref(), py_.basis.eigenvectors.as_ref(), c.as_ref(), &o)
+    })?;
+    Ok((arrays::mat_out(py, c.as_ref()), arrays::index_out(py, &map)))
+}
+
+/// ZoomOut (Melzi et al. 2019) of C (k × k, X → Y coefficients) to k_final in steps of `step`.
+#[pyfunction]
+#[pyo3(signature = (x, y, c, k_final, step=1))]
+fn zoomout_refine<'py>(
+    py: Python<'py>,
+    x: &Bound<'py, PyAny>,
+    y: &Bound<'py, PyAny>,
+    c: &Bound<'py, PyAny>,
+    k_final: usize,
+    step: usize,
+) -> PyResult<MapOut<'py>> {
+    let (px, py_) = (prepared_arg(x, "X")?, prepared_arg(y, "Y")?);
+    let c = fmap_arg(c, "C")?;
+    check_c_fits(&c, &px, &py_, "C")?;
+    if k_final < c.nrows() || k_final > px.basis.k().min(py_.basis.k()) {
+        return Err(value_error(
+            "k_final",
+            format!("{k_final}: need {} ≤ k_final ≤ the basis sizes ({}, {})", c.nrows(), px.basis.k(), py_.basis.k()),
+        ));
+    }
+    if step == 0 {
+        return Err(value_error("step", "must be at least 1"));
+    }
+    let (c, map) = compute(py, move || {
+        let o = funcorr::pointwise::ZoomOutOptions { k_final, step };
+        funcorr::pointwise::zoomout(
+            px.basis.eigenvectors.as_ref(),
+            py_.basis.eigenvectors.as_ref(),
+            &py_.basis.mass,
+            c.as_ref(),
+            &o,
+        )
+    })?;
+    Ok((arrays::mat_out(py, c.as_ref()), arrays::index_out(py, &map)))
+}
+
+/// Point maps of a functional map C (k × k, X → Y coefficients): (map_xy, map_yx).
+#[pyfunction]
+fn maps_from_fmap<'py>(
+    py: Python<'py>,
+    x: &Bound<'py, PyAny>,
+    y: &Bound<'py, PyAny>,
+    c: &Bound<'py, PyAny>,
+) -> PyResult<(I64s<'py>, I64s<'py>)> {
+    let (px, py_) = (prepared_arg(x, "X")?, prepared_arg(y, "Y")?);
+    let c = fmap_arg(c, "C")?;
+    check_c_fits(&c, &px, &py_, "C")?;
+    let (a, b) = compute(py, move || {
+        let (phi, psi) = (px.basis.eigenvectors.as_ref(), py_.basis.eigenvectors.as_ref());
+        Ok((
+            funcorr::pointwise::map_from_fmap(phi, psi, c.as_ref())?,
+            funcorr::pointwise::map_yx_from_fmap(phi, psi, c.as_ref())?,
+        ))
+    })?;
+    Ok((arrays::index_out(py, &a), arrays::index_out(py, &b)))
+}
+
+/// The functional map C (k × k, X → Y coefficients) of a point map Y → X:
+/// C = Ψ_kᵀ A_Y Π Φ_k.
+#[pyfunction]
+fn fmap_from_map<'py>(
+    py: Python<'py>,
+    x: &Bound<'py, PyAny>,
+    y: &Bound<'py, PyAny>,
+    map_yx: &Bound<'py, PyAny>,
+    k: usize,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let (px, py_) = (prepared_arg(x, "X")?, prepared_arg(y, "Y")?);
+    let map = arrays::indices(map_yx, "map_yx", px.n())?;
+    if map.len() != py_.n() {
+        return Err(value_error("map_yx", format!("length {} but Y has m = {} vertices", map.len(), py_.n())));
+    }
+    if k == 0 || k > px.basis.k().min(py_.basis.k()) {
+        return Err(value_error(
+            "k",
+            format!("{k}: need 1 ≤ k ≤ the basis sizes ({}, {})", px.basis.k(), py_.basis.k()),
+        ));
+    }
+    let c = compute(py, move || {
+        funcorr::pointwise::fmap_from_map_yx(
+            px.basis.eigenvectors.as_ref(),
+            py_.basis.eigenvectors.as_ref(),
+            &py_.basis.mass,
+            &map,
+            k,
+        )
+    })?;
+    Ok(arrays::mat_out(py, c.as_ref()))
+}
+
+/// The mesh of a prepared shape or a shape argument (errors unless it is a triangle mesh).
+pub(crate) fn mesh_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Arc<TriMesh>> {
+    if let Ok(p) = obj.cast::<PyPrepared>() {
+        return match &p.get().inner.shape {
+            Shape::Mesh(m) => Ok(Arc::new(m.clone())),
+            _ => Err(value_error(name, "expected a triangle mesh, got a point set")),
+        };
+    }
+    match arrays::shape(obj, name)? {
+        Shape::Mesh(m) => Ok(Arc::new(m)),
+        _ => Err(value_error(name, "expected a triangle mesh (V, F), got a point set")),
+    }
+}
+
+/// The geometry of a shape argument for drawing: vertices and faces (none for point clouds).
+pub(crate) fn geometry_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<arrays::Geometry> {
+    let shape = match obj.cast::<PyPrepared>() {
+        Ok(p) => p.get().inner.shape.clone(),
+        Err(_) => arrays::shape(obj, name)?,
+    };
+    match shape {
+        Shape::Mesh(m) => Ok((m.vertices().to_vec(), m.faces().to_vec())),
+        Shape::Points(p) if p.dim() == 3 => Ok((p.coords().chunks(3).map(|c| [c[0], c[1], c[2]]).collect(), vec![])),
+        Shape::Points(p) => Err(value_error(name, format!("expected a mesh or 3-D points, got {}-D points", p.dim()))),
+    }
+}
+
+/// The shape, Laplacian and basis of a prepared shape argument.
+pub(crate) fn prepared(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Arc<PreparedShape>> {
+    prepared_arg(obj, name)
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyPrepared>()?;
+    m.add_function(wrap_pyfunction!(_prepared_from_state, m)?)?;
+    m.add_function(wrap_pyfunction!(prepare, m)?)?;
+    m.add_function(wrap_pyfunction!(match_shapes, m)?)?;
+    m.add_function(wrap_pyfunction!(icp_refine, m)?)?;
+    m.add_function(wrap_pyfunction!(zoomout_refine, m)?)?;
+    m.add_function(wrap_pyfunction!(maps_from_fmap, m)?)?;
+    m.add_function(wrap_pyfunction!(fmap_from_map, m)?)?;
+    Ok(())
+}
