@@ -56,6 +56,7 @@ __all__ = [
     "zoomout_refine",
     "maps_from_fmap",
     "fmap_from_map",
+    "axiomatic_fmap",
     "geodesic_distances",
     "geodesic_pairs",
     "geodesic_all_pairs",
@@ -291,6 +292,29 @@ def fmap_from_map(X: PreparedShape, Y: PreparedShape, map_yx, k: int) -> np.ndar
     """The functional map C = Ψ_kᵀ diag(A_Y) Π Φ_k (k × k, X → Y coefficients) of a point map Y → X
     (``map_yx`` (m,), vertices of X)."""
     return _funcorr.fmap_from_map(X, Y, map_yx, k)
+
+
+def axiomatic_fmap(
+    X: PreparedShape,
+    Y: PreparedShape,
+    F,
+    G,
+    k: int,
+    w_descr: float = 1.0,
+    w_lap: float = 0.1,
+    w_dcomm: float = 1.0,
+    w_orient: float = 0.0,
+    mask: str = "resolvent",
+    orientation: str = "preserve",
+    fix_constant: bool = True,
+) -> Tuple[np.ndarray, float]:
+    """The axiomatic functional map C (k × k, X → Y coefficients) from descriptors F (n, q) on X
+    and G (m, q) on Y: the exact minimizer of descriptor preservation ``w_descr``, Laplacian
+    commutativity ``w_lap`` (``mask="resolvent"|"standard"``), descriptor commutativity
+    ``w_dcomm`` and orientation ``w_orient`` (``orientation="preserve"|"reverse"``), each term
+    scale-free (funcorr's ``fmap::energy``), the first column fixed to map constants to
+    constants. Returns ``(C, energy)``."""
+    return _funcorr.axiomatic_fmap(X, Y, F, G, k, w_descr, w_lap, w_dcomm, w_orient, mask, orientation, fix_constant)
 
 
 def geodesic_distances(mesh: ShapeLike, sources, method: str = "exact") -> np.ndarray:

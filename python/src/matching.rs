@@ -540,6 +540,96 @@ fn fmap_from_map<'py>(
     Ok(arrays::mat_out(py, c.as_ref()))
 }
 
+/// The axiomatic functional map C (k × k, X → Y coefficients) from descriptors F (n × q) on X
+/// and G (m × q) on Y: the exact minimizer of the energy of `funcorr::fmap::energy` with the
+/// given weights, mask and orientation, the first column fixed to map constants to constants.
+#[pyfunction]
+#[pyo3(signature = (x, y, f, g, k, w_descr=1.0, w_lap=0.1, w_dcomm=1.0, w_orient=0.0, mask="resolvent", orientation="preserve", fix_constant=true))]
+#[allow(clippy::too_many_arguments)]
+fn axiomatic_fmap<'py>(
+    py: Python<'py>,
+    x: &Bound<'py, PyAny>,
+    y: &Bound<'py, PyAny>,
+    f: &Bound<'py, PyAny>,
+    g: &Bound<'py, PyAny>,
+    k: usize,
+    w_descr: f64,
+    w_lap: f64,
+    w_dcomm: f64,
+    w_orient: f64,
+    mask: &str,
+    orientation: &str,
+    fix_constant: bool,
+) -> PyResult<(Bound<'py, PyArray2<f64>>, f64)> {
+    use funcorr::fmap::axiomatic::{axiomatic, AxiomaticOptions, ShapeData};
+    use funcorr::fmap::energy::{EnergyWeights, Mask, Orientation};
+    let (px, py_) = (prepared_arg(x, "X")?, prepared_arg(y, "Y")?);
+    let f = arrays::matrix(f, "F")?;
+    let g = arrays::matrix(g, "G")?;
+    if f.nrows() != px.n() || g.nrows() != py_.n() || f.ncols() != g.ncols() || f.ncols() == 0 {
+        return Err(value_error(
+            "F",
+            format!(
+                "F is {}×{} and G {}×{}: need n × q and m × q (n = {}, m = {}, q ≥ 1)",
+                f.nrows(),
+                f.ncols(),
+                g.nrows(),
+                g.ncols(),
+                px.n(),
+                py_.n()
+            ),
+        ));
+    }
+    if k == 0 || k > px.basis.k().min(py_.basis.k()) {
+        return Err(value_error(
+            "k",
+            format!("{k}: need 1 ≤ k ≤ the basis sizes ({}, {})", px.basis.k(), py_.basis.k()),
+        ));
+    }
+    for (name, w) in [("w_descr", w_descr), ("w_lap", w_lap), ("w_dcomm", w_dcomm), ("w_orient", w_orient)] {
+        if !(w.is_finite() && w >= 0.0) {
+            return Err(value_error(name, format!("must be finite and ≥ 0, got {w}")));
+        }
+    }
+    let mask = match mask {
+        "resolvent" => Mask::Resolvent { gamma: 0.5 },
+        "standard" => Mask::Standard,
+        other => return Err(value_error("mask", format!("{other:?}: expected 'resolvent' or 'standard'"))),
+    };
+    let orientation = match orientation {
+        "preserve" => Orientation::Preserve,
+        "reverse" => Orientation::Reverse,
+        "ignore" => Orientation::Ignore,
+        other => {
+            return Err(value_error("orientation", format!("{other:?}: expected 'preserve', 'reverse' or 'ignore'")))
+        }
+    };
+    let opts = AxiomaticOptions {
+        k,
+        weights: EnergyWeights {
+            descriptors: w_descr,
+            laplacian: w_lap,
+            commutativity: w_dcomm,
+            orientation: w_orient,
+        },
+        mask,
+        orientation,
+        fix_constant,
+        unit_gradients: true,
+    };
+    let (c, energy) = compute(py, move || {
+        let names: Vec<String> = (0..f.ncols()).map(|j| format!("column {j}")).collect();
+        let (df, dg) = (Descriptors::new(f, names.clone())?, Descriptors::new(g, names)?);
+        let orient = w_orient > 0.0 && orientation != Orientation::Ignore;
+        let (gx, gy) = if orient { (px.gradients(), py_.gradients()) } else { (None, None) };
+        let sx = ShapeData { basis: &px.basis, gradients: gx, descriptors: &df };
+        let sy = ShapeData { basis: &py_.basis, gradients: gy, descriptors: &dg };
+        let (c, report) = axiomatic(&sx, &sy, &opts)?;
+        Ok((c, report.energy))
+    })?;
+    Ok((arrays::mat_out(py, c.as_ref()), energy))
+}
+
 /// The mesh of a prepared shape or a shape argument (errors unless it is a triangle mesh).
 pub(crate) fn mesh_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Arc<TriMesh>> {
     if let Ok(p) = obj.cast::<PyPrepared>() {
@@ -581,5 +671,6 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(zoomout_refine, m)?)?;
     m.add_function(wrap_pyfunction!(maps_from_fmap, m)?)?;
     m.add_function(wrap_pyfunction!(fmap_from_map, m)?)?;
+    m.add_function(wrap_pyfunction!(axiomatic_fmap, m)?)?;
     Ok(())
 }

@@ -1,0 +1,1 @@
+"""Drop-in interfaces of other shape-correspondence libraries on funcorr (``funcorr.compat.pyfm``)."""

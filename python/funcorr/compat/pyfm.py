@@ -1,0 +1,478 @@
+"""pyFM's ``TriMesh`` and ``FunctionalMapping`` on funcorr: change the import, keep the script.
+
+::
+
+    from funcorr.compat.pyfm import TriMesh, FunctionalMapping   # was: from pyFM.mesh import TriMesh
+                                                                  #      from pyFM.functional import FunctionalMapping
+    import funcorr.compat.pyfm as pyFM                            # pyFM.eval.accuracy(...)
+
+Conventions are pyFM's: ``FM`` (k2 × k1) maps functions on mesh1 to mesh2 (funcorr's ``C`` with
+X = mesh1, Y = mesh2), and ``p2p_21 = model.get_p2p()`` gives for each vertex of mesh2 a vertex
+of mesh1 (funcorr's ``map_yx``).
+
+What is computed by funcorr, and where it differs from pyFM:
+
+* ``TriMesh.process(k)``: funcorr's cotangent Laplacian (barycentric mass, intrinsic
+  mollification of degenerate triangles) and its eigenbasis; ``intrinsic=True`` /
+  ``robust=True`` select funcorr's point-cloud Laplacian only for meshes without faces (funcorr
+  has no intrinsic-Delaunay Laplacian; its cotangent Laplacian is used).
+* Descriptors: funcorr's WKS / HKS (scale-normalized), subsampled and L²-normalized as pyFM
+  does; landmark descriptors are heat kernel maps at the landmarks for both descriptor types.
+* ``fit``: the same four terms (descriptor preservation, Laplacian commutativity with pyFM's
+  (λ₁ − λ₂)² mask, descriptor commutativity, orientation) minimized exactly by funcorr's solver
+  rather than by L-BFGS; each term is scale-free in funcorr, so the weights are comparable to
+  pyFM's but not identical. The map is square: ``n_ev`` must be (k, k).
+* ``icp_refine`` / ``zoomout_refine``: funcorr's ICP and ZoomOut on every vertex
+  (``subsample`` is not used: funcorr's ZoomOut is fast enough on every vertex of 10⁴–10⁵-vertex
+  meshes; a warning says so when it is given).
+* ``geod_from`` / ``get_geodesic``: exact polyhedral geodesics (``robust=True``), or the heat
+  method / Dijkstra.
+"""
+
+from __future__ import annotations
+
+import copy
+import warnings
+from typing import Optional
+
+import numpy as np
+
+import funcorr
+
+__all__ = ["TriMesh", "FunctionalMapping", "eval"]
+
+
+class TriMesh:
+    """A triangle mesh: ``TriMesh(path)``, ``TriMesh(vertlist, facelist)`` or
+    ``TriMesh(vertlist)`` (a point cloud), with ``area_normalize=``, ``center=``,
+    ``rotation=``, ``translation=`` as in pyFM."""
+
+    def __init__(self, *args, area_normalize: bool = False, center: bool = False, rotation=None, translation=None, **kwargs):
+        if not 0 < len(args) < 3:
+            raise ValueError("Provide a path or vertices / faces")
+        if len(args) == 1 and isinstance(args[0], str) or hasattr(args[0], "__fspath__"):
+            self.path = str(args[0])
+            V, F = funcorr.read_mesh(args[0])
+            self._vertlist, self._facelist = V, (F if len(F) else None)
+        else:
+            self.path = None
+            self._vertlist = np.array(args[0], dtype=np.float64)
+            self._facelist = None if len(args) == 1 or args[1] is None else np.asarray(args[1])
+        if self._vertlist.ndim != 2 or self._vertlist.shape[1] != 3:
+            raise ValueError("Vertex list requires 3D coordinates: shape (n, 3)")
+        self._prepared: Optional[funcorr.PreparedShape] = None
+        self.eigenvalues: Optional[np.ndarray] = None
+        self.eigenvectors: Optional[np.ndarray] = None
+        self._geod_cache = None
+        if rotation is not None:
+            self.rotate(np.asarray(rotation))
+        if translation is not None:
+            self.translate(translation)
+        if area_normalize:
+            c = self.center_mass
+            self.translate(-c)
+            self._vertlist = self._vertlist / self.sqrtarea
+            self.translate(c)
+        if center:
+            self.translate(-self.center_mass)
+
+    # geometry -------------------------------------------------------------------------------
+    @property
+    def vertlist(self) -> np.ndarray:
+        """(n, 3) vertex positions."""
+        return self._vertlist
+
+    @vertlist.setter
+    def vertlist(self, v):
+        self._vertlist = np.array(v, dtype=np.float64)
+        self._reset()
+
+    @property
+    def facelist(self) -> Optional[np.ndarray]:
+        """(m, 3) triangles (None for a point cloud)."""
+        return self._facelist
+
+    @facelist.setter
+    def facelist(self, f):
+        self._facelist = None if f is None else np.asarray(f)
+        self._reset()
+
+    vertices = vertlist
+    faces = facelist
+
+    def _reset(self):
+        self._prepared = None
+        self.eigenvalues = self.eigenvectors = None
+        self._geod_cache = None
+
+    @property
+    def n_vertices(self) -> int:
+        return self._vertlist.shape[0]
+
+    @property
+    def n_faces(self) -> int:
+        return 0 if self._facelist is None else self._facelist.shape[0]
+
+    @property
+    def face_areas(self) -> np.ndarray:
+        V, F = self._vertlist, self._facelist
+        return 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+
+    faces_areas = face_areas
+
+    @property
+    def area(self) -> float:
+        return float(self.vertex_areas.sum())
+
+    @property
+    def sqrtarea(self) -> float:
+        return float(np.sqrt(self.area))
+
+    @property
+    def vertex_areas(self) -> np.ndarray:
+        """(n,) barycentric vertex areas (the lumped mass of the Laplacian)."""
+        if self._prepared is not None:
+            return self._prepared.mass
+        if self._facelist is None:
+            return funcorr.cloud_laplacian(self._vertlist)[1]
+        return funcorr.cotangent_laplacian(self._vertlist, self._facelist)[1]
+
+    @property
+    def center_mass(self) -> np.ndarray:
+        return np.average(self._vertlist, axis=0, weights=self.vertex_areas)
+
+    @property
+    def normals(self) -> np.ndarray:
+        """(m, 3) unit face normals."""
+        V, F = self._vertlist, self._facelist
+        n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+        return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+    @property
+    def vertex_normals(self) -> np.ndarray:
+        """(n, 3) area-weighted unit vertex normals."""
+        V, F = self._vertlist, self._facelist
+        n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+        out = np.zeros_like(V)
+        for c in range(3):
+            np.add.at(out, F[:, c], n)
+        return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+    @property
+    def edges(self) -> np.ndarray:
+        F = self._facelist
+        e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+        return np.unique(e, axis=0)
+
+    def rotate(self, R):
+        self._vertlist = self._vertlist @ np.asarray(R).T
+        self._reset()
+        return self
+
+    def translate(self, t):
+        self._vertlist = self._vertlist + np.asarray(t).reshape(1, 3)
+        self._reset()
+        return self
+
+    def scale(self, alpha):
+        self._vertlist = self._vertlist * alpha
+        self._reset()
+        return self
+
+    # spectrum -------------------------------------------------------------------------------
+    def _shape(self):
+        return (self._vertlist, self._facelist)
+
+    def process(self, k: int = 200, skip_normals: bool = True, intrinsic: bool = False, robust: bool = False, verbose: bool = False):
+        """Computes the first k eigenpairs (funcorr's cotangent Laplacian; point clouds: the
+        point-cloud Laplacian). Returns self."""
+        if self.eigenvalues is not None and len(self.eigenvalues) >= k:
+            self.eigenvalues = self.eigenvalues[:k]
+            self.eigenvectors = self.eigenvectors[:, :k]
+            return self
+        self._prepared = funcorr.prepare(self._shape(), k=k)
+        self.eigenvalues = self._prepared.eigenvalues
+        self.eigenvectors = self._prepared.eigenvectors
+        if verbose:
+            print(f"\tComputed {k} eigenpairs (funcorr, block Lanczos)")
+        return self
+
+    @property
+    def A(self):
+        import scipy.sparse as sp
+
+        return sp.diags(self.vertex_areas)
+
+    @property
+    def W(self):
+        if self._prepared is None:
+            raise ValueError("call process(k) first")
+        return funcorr.stiffness(self._prepared)
+
+    def l2_sqnorm(self, func) -> np.ndarray:
+        f = np.asarray(func)
+        a = self.vertex_areas
+        return (a[:, None] * f * f).sum(0) if f.ndim == 2 else float((a * f * f).sum())
+
+    def l2_inner(self, f, g):
+        f, g = np.asarray(f), np.asarray(g)
+        a = self.vertex_areas
+        return (a[:, None] * f * g).sum(0) if f.ndim == 2 else float((a * f * g).sum())
+
+    def integrate(self, func):
+        f = np.asarray(func)
+        return self.vertex_areas @ f
+
+    def project(self, func, k: Optional[int] = None) -> np.ndarray:
+        """Coefficients Φ_kᵀ A f of a function (n,) or functions (n, p) on the first k eigenvectors."""
+        k = self.eigenvectors.shape[1] if k is None else k
+        f = np.asarray(func)
+        af = self.vertex_areas[:, None] * f if f.ndim == 2 else self.vertex_areas * f
+        return self.eigenvectors[:, :k].T @ af
+
+    def decode(self, projection) -> np.ndarray:
+        c = np.asarray(projection)
+        return self.eigenvectors[:, : c.shape[0]] @ c
+
+    unproject = decode
+
+    def reconstruct(self, func, k: Optional[int] = None):
+        return self.decode(self.project(func, k=k))
+
+    # geodesics ------------------------------------------------------------------------------
+    def geod_from(self, i: int, robust: bool = True) -> np.ndarray:
+        """(n,) geodesic distances from vertex i: exact polyhedral (``robust=True``) or the heat method."""
+        return funcorr.geodesic_distances(self._shape(), int(i), method="exact" if robust else "heat")
+
+    def get_geodesic(self, dijkstra: bool = False, robust: bool = True, save: bool = False, force_compute: bool = False, sym: bool = False, batch_size: int = 500, verbose: bool = False) -> np.ndarray:
+        """(n, n) geodesic distances (the heat method, or Dijkstra on the edges with
+        ``dijkstra=True``), symmetrized with ``sym=True``; cached on the mesh."""
+        if self._geod_cache is None or force_compute:
+            D = funcorr.geodesic_all_pairs(self._shape(), method="dijkstra" if dijkstra else "heat", chunk=batch_size)
+            self._geod_cache = D
+        D = self._geod_cache
+        return 0.5 * (D + D.T) if sym else D
+
+    def extract_fps(self, size: int, random_init: bool = True, geodesic: bool = False, verbose: bool = False) -> np.ndarray:
+        """``size`` farthest-point samples (Euclidean), starting from vertex 0."""
+        V = self._vertlist
+        chosen = [0]
+        d = np.linalg.norm(V - V[0], axis=1)
+        for _ in range(1, min(size, len(V))):
+            j = int(np.argmax(d))
+            chosen.append(j)
+            d = np.minimum(d, np.linalg.norm(V - V[j], axis=1))
+        return np.array(chosen)
+
+    def export(self, filename: str, precision: Optional[int] = None):
+        funcorr.write_mesh(filename, self._vertlist, self._facelist)
+        return self
+
+
+def _normalize(descr: np.ndarray, mesh: TriMesh) -> np.ndarray:
+    return descr / np.sqrt(mesh.l2_sqnorm(descr))[None, :]
+
+
+class FunctionalMapping:
+    """A functional map between mesh1 and mesh2 (pyFM's conventions: ``FM`` (k2 × k1) maps
+    functions on mesh1 to mesh2, ``p2p_21`` gives for each vertex of mesh2 a vertex of mesh1)."""
+
+    def __init__(self, mesh1: TriMesh, mesh2: TriMesh):
+        self.mesh1 = copy.copy(mesh1)
+        self.mesh2 = copy.copy(mesh2)
+        self.descr1 = None
+        self.descr2 = None
+        self._FM_type = "classic"
+        self._FM_base = None
+        self._FM_icp = None
+        self._FM_zo = None
+        self._k1 = self._k2 = None
+
+    @property
+    def k1(self):
+        if self._k1 is None and self.mesh1.eigenvalues is not None:
+            return len(self.mesh1.eigenvalues)
+        return self._k1 if self._k1 is not None else (None if self.FM is None else self.FM.shape[1])
+
+    @k1.setter
+    def k1(self, k):
+        self._k1 = k
+
+    @property
+    def k2(self):
+        if self._k2 is None and self.mesh2.eigenvalues is not None:
+            return len(self.mesh2.eigenvalues)
+        return self._k2 if self._k2 is not None else (None if self.FM is None else self.FM.shape[0])
+
+    @k2.setter
+    def k2(self, k):
+        self._k2 = k
+
+    @property
+    def FM_type(self) -> str:
+        return self._FM_type
+
+    @FM_type.setter
+    def FM_type(self, t: str):
+        if t.lower() not in ("classic", "icp", "zoomout"):
+            raise ValueError(f"FM_type can only be 'classic', 'icp' or 'zoomout', not {t!r}")
+        self._FM_type = t
+
+    def change_FM_type(self, FM_type: str):
+        self.FM_type = FM_type
+
+    @property
+    def FM(self) -> Optional[np.ndarray]:
+        """The current functional map (k2 × k1, functions on mesh1 → mesh2) of ``FM_type``."""
+        return {"classic": self._FM_base, "icp": self._FM_icp, "zoomout": self._FM_zo}[self._FM_type.lower()]
+
+    @FM.setter
+    def FM(self, FM):
+        self._FM_base = FM
+
+    @property
+    def preprocessed(self) -> bool:
+        return self.descr1 is not None and self.descr2 is not None and self.mesh1.eigenvalues is not None
+
+    @property
+    def fitted(self) -> bool:
+        return self.FM is not None
+
+    def _lmks(self, landmarks):
+        lm = np.asarray(landmarks)
+        if lm.squeeze().ndim == 1:
+            return lm.squeeze(), lm.squeeze().copy()
+        return lm[:, 0], lm[:, 1]
+
+    def preprocess(self, n_ev=(50, 50), n_descr: int = 100, descr_type: str = "WKS", landmarks=None, subsample_step: int = 1, k_process: Optional[int] = None, verbose: bool = False):
+        """Spectra (max(k, k_process = 200) eigenpairs), descriptors (``descr_type`` "WKS" or
+        "HKS", ``n_descr`` of them from the first k1 / k2 eigenpairs, plus heat kernel maps at
+        the ``landmarks`` ((p,) same indices, or (p, 2))), every ``subsample_step``-th kept,
+        L²-normalized. Returns self."""
+        self.k1, self.k2 = n_ev
+        k_process = 200 if k_process is None else k_process
+        self.mesh1.process(max(self.k1, k_process), verbose=verbose)
+        self.mesh2.process(max(self.k2, k_process), verbose=verbose)
+
+        def basis(mesh, k):
+            return (mesh.eigenvalues[:k], mesh.eigenvectors[:, :k], mesh.vertex_areas)
+
+        b1, b2 = basis(self.mesh1, self.k1), basis(self.mesh2, self.k2)
+        if descr_type == "WKS":
+            d1, d2 = funcorr.wks(b1, n_descr), funcorr.wks(b2, n_descr)
+        elif descr_type == "HKS":
+            d1, d2 = funcorr.hks(b1, n_descr), funcorr.hks(b2, n_descr)
+        else:
+            raise ValueError(f'Descriptor type "{descr_type}" not implemented')
+        if landmarks is not None and len(landmarks) > 0:
+            l1, l2 = self._lmks(landmarks)
+            # Heat kernel maps at the landmarks, n_descr times log-spaced on each shape as its HKS.
+            d1 = np.hstack([d1, funcorr.hkm(b1, l1, count=n_descr)])
+            d2 = np.hstack([d2, funcorr.hkm(b2, l2, count=n_descr)])
+        self.descr1 = _normalize(d1[:, ::subsample_step], self.mesh1)
+        self.descr2 = _normalize(d2[:, ::subsample_step], self.mesh2)
+        if verbose:
+            print(f"\n\t{self.descr1.shape[1]} descriptors kept")
+        return self
+
+    def fit(self, w_descr: float = 1e-1, w_lap: float = 1e-3, w_dcomm: float = 1, w_orient: float = 0, orient_reversing: bool = False, optinit: str = "zeros", verbose: bool = False):
+        """The functional map minimizing descriptor preservation (``w_descr``), Laplacian
+        commutativity (``w_lap``, mask (λ₁ − λ₂)²), descriptor commutativity (``w_dcomm``) and
+        orientation preservation (``w_orient``; reversal with ``orient_reversing``), solved
+        exactly by funcorr (``optinit`` is checked but the solution does not depend on it)."""
+        if optinit not in ("random", "identity", "zeros"):
+            raise ValueError(f"optinit arg should be 'random', 'identity' or 'zeros', not {optinit}")
+        if not self.preprocessed:
+            self.preprocess()
+        if self.k1 != self.k2:
+            raise ValueError(f"n_ev: funcorr fits square functional maps, got (k1, k2) = ({self.k1}, {self.k2})")
+        C, energy = funcorr.axiomatic_fmap(
+            self.mesh1._prepared,
+            self.mesh2._prepared,
+            self.descr1,
+            self.descr2,
+            self.k1,
+            w_descr=w_descr,
+            w_lap=w_lap,
+            w_dcomm=w_dcomm,
+            w_orient=w_orient,
+            mask="standard",
+            orientation="reverse" if orient_reversing else "preserve",
+        )
+        self.FM = C
+        if verbose:
+            print(f"\tFitted a {C.shape[0]}×{C.shape[1]} map, energy {energy:.3e}")
+        return self
+
+    def get_p2p(self, use_adj: bool = False, n_jobs: int = 1) -> np.ndarray:
+        """(n2,) ``p2p_21``: vertex i of mesh2 matched to vertex p2p_21[i] of mesh1."""
+        if self.FM is None:
+            raise ValueError("Model should be fit before computing the p2p map")
+        return funcorr.maps_from_fmap(self.mesh1._prepared, self.mesh2._prepared, self.FM)[1]
+
+    @property
+    def p2p_21(self) -> np.ndarray:
+        """``get_p2p()``: for each vertex of mesh2 a vertex of mesh1."""
+        return self.get_p2p()
+
+    @property
+    def p2p(self) -> np.ndarray:
+        return self.get_p2p()
+
+    def icp_refine(self, nit: int = 10, tol=None, use_adj: bool = False, overwrite: bool = True, verbose: bool = False, n_jobs: int = 1):
+        """ICP refinement of the current FM (``nit`` iterations at most; stops when the point map
+        no longer changes)."""
+        if not self.fitted:
+            raise ValueError("The Functional map must be fit before refining it")
+        self._FM_icp, _ = funcorr.icp_refine(self.mesh1._prepared, self.mesh2._prepared, self.FM, iterations=nit if nit is not None else 50)
+        if overwrite:
+            self.FM_type = "icp"
+        return self
+
+    def zoomout_refine(self, nit: int = 10, step: int = 1, subsample=None, overwrite: bool = True, verbose: bool = False):
+        """ZoomOut of the current FM: ``nit`` iterations of ``step`` (to k + nit · step)."""
+        if not self.fitted:
+            raise ValueError("The Functional map must be fit before refining it")
+        if subsample:
+            warnings.warn("funcorr's ZoomOut runs on every vertex; subsample is not used", stacklevel=2)
+        k = self.FM.shape[0]
+        need = k + nit * step
+        for mesh in (self.mesh1, self.mesh2):
+            if len(mesh.eigenvalues) < need:
+                mesh.process(need)
+        self._FM_zo, _ = funcorr.zoomout_refine(self.mesh1._prepared, self.mesh2._prepared, self.FM, k_final=need, step=step)
+        if overwrite:
+            self.FM_type = "zoomout"
+        return self
+
+    def project(self, func, k=None, mesh_ind: int = 1):
+        mesh, kk = (self.mesh1, self.k1) if mesh_ind == 1 else (self.mesh2, self.k2)
+        return mesh.project(func, k=kk if k is None else k)
+
+    def decode(self, encoded_func, mesh_ind: int = 2):
+        return (self.mesh1 if mesh_ind == 1 else self.mesh2).decode(encoded_func)
+
+    def transport(self, encoded_func, reverse: bool = False):
+        FM = self.FM
+        c = np.asarray(encoded_func)
+        return FM[:, : c.shape[0]] @ c if not reverse else FM.T[:, : c.shape[0]] @ c
+
+    def transfer(self, func, reverse: bool = False):
+        if not reverse:
+            return self.decode(self.transport(self.project(func, mesh_ind=1)), mesh_ind=2)
+        return self.decode(self.transport(self.project(func, mesh_ind=2), reverse=True), mesh_ind=1)
+
+
+class _Eval:
+    """``pyFM.eval``: ``accuracy(p2p, gt_p2p, D1_geod, return_all=False, sqrt_area=None)``."""
+
+    @staticmethod
+    def accuracy(p2p, gt_p2p, D1_geod, return_all: bool = False, sqrt_area=None):
+        """Mean of D1_geod[p2p[i], gt_p2p[i]] (divided by ``sqrt_area``): maps from mesh2 to mesh1."""
+        dists = np.asarray(D1_geod)[np.asarray(p2p), np.asarray(gt_p2p)].astype(np.float64)
+        if sqrt_area is not None:
+            dists = dists / sqrt_area
+        return (dists.mean(), dists) if return_all else dists.mean()
+
+
+eval = _Eval()
