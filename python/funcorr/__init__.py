@@ -29,7 +29,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from . import _funcorr
-from ._funcorr import PreparedShape, get_num_threads, set_num_threads
+from ._funcorr import PreparedShape, get_num_threads
 
 __version__ = _funcorr.__version__
 
@@ -67,6 +67,18 @@ __all__ = [
     "set_num_threads",
     "get_num_threads",
 ]
+
+_threads_setting: Optional[int] = None
+
+
+def set_num_threads(n: Optional[int] = None) -> None:
+    """Threads each funcorr call uses (None or 0: every core, or ``$FUNCORR_NUM_THREADS`` when
+    set). Each call runs on a rayon pool of that many threads of its own, with the GIL
+    released, so k Python threads calling funcorr at once use k · n threads."""
+    global _threads_setting
+    _funcorr.set_num_threads(n)
+    _threads_setting = n
+
 
 ShapeLike = Any  # path | (V, F) | (n, d) array | PreparedShape
 BasisLike = Any  # PreparedShape | (eigenvalues, eigenvectors, mass)

@@ -406,6 +406,21 @@ fn match_shapes<'py>(
     Ok(out)
 }
 
+/// The eigenpairs per shape `match` computes for these data and options (`funcorr match`'s
+/// rule: what the method and its refinement need, at least 200 unless `kprime` says otherwise),
+/// so that shapes prepared with it give exactly the maps of raw shapes.
+#[pyfunction]
+#[pyo3(signature = (data, options=None))]
+fn match_basis_size(data: &Bound<'_, PyAny>, options: Option<&Bound<'_, PyDict>>) -> PyResult<usize> {
+    let rich = match data_arg(data)? {
+        Data::Spec(s) => s.is_rich(),
+        Data::Given(..) => true,
+    };
+    let mut o = options::Opts::new(options)?;
+    let (_, k, _) = options::match_options(&mut o, rich)?;
+    Ok(k)
+}
+
 fn fmap_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Mat<f64>> {
     let c = arrays::matrix(obj, name)?;
     if c.nrows() != c.ncols() || c.nrows() == 0 {
@@ -672,5 +687,6 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(maps_from_fmap, m)?)?;
     m.add_function(wrap_pyfunction!(fmap_from_map, m)?)?;
     m.add_function(wrap_pyfunction!(axiomatic_fmap, m)?)?;
+    m.add_function(wrap_pyfunction!(match_basis_size, m)?)?;
     Ok(())
 }
