@@ -87,11 +87,19 @@ fn get_num_threads() -> PyResult<usize> {
     })
 }
 
+/// The number of rayon threads a computation runs on with the current setting (what the pool of
+/// [`compute`] gives; for the tests of `set_num_threads`).
+#[pyfunction]
+fn _pool_threads(py: Python<'_>) -> PyResult<usize> {
+    compute(py, || Ok(rayon::current_num_threads()))
+}
+
 #[pymodule]
 fn _funcorr(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_function(wrap_pyfunction!(set_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(get_num_threads, m)?)?;
+    m.add_function(wrap_pyfunction!(_pool_threads, m)?)?;
     functions::register(m)?;
     matching::register(m)?;
     Ok(())

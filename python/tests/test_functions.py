@@ -247,3 +247,19 @@ def test_default_match_is_accurate_and_renders(default_match, ground_truth):
     assert one.shape == (120, 100, 3)
     with pytest.raises(ValueError, match="elevation"):
         funcorr.render(X_PATH, view=(0, 120))
+
+
+def test_point_clouds_and_feature_data(mesh_x, mesh_y, ground_truth):
+    gx, gy, gs = ground_truth
+    # X as a point cloud (the point-cloud Laplacian), Y as a mesh: the same pipeline.
+    X = funcorr.prepare((mesh_x[0], None), k=60)
+    assert X.faces.shape == (0, 3) and X.n == 4999
+    Y = funcorr.prepare(mesh_y, k=60)
+    r = funcorr.match(X, Y, method="fmap", data="wks:50", k=30, refine="zoomout", zoomout_to=60, zoomout_step=5)
+    assert funcorr.evaluate(r.map_xy, Y, gx, gy, gs)["mean"] < 0.1
+    # Abstract data (n × 5 features): the kNN graph Laplacian.
+    rng = np.random.default_rng(0)
+    P = funcorr.prepare(rng.normal(size=(300, 5)), k=10)
+    assert P.vertices.shape == (300, 5) and abs(P.eigenvalues[0]) < 1e-8
+    W, A = funcorr.knn_laplacian(P.vertices, k=10)
+    assert (funcorr.stiffness(P) != W).nnz == 0

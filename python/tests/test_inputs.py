@@ -148,12 +148,21 @@ def test_index_arguments_are_checked(prepared_pair, mesh_y):
 
 
 def test_thread_count_setting(monkeypatch):
+    from funcorr import _funcorr
+
+    monkeypatch.delenv("FUNCORR_NUM_THREADS", raising=False)
     try:
-        funcorr.set_num_threads(1)
-        assert funcorr.get_num_threads() == 1
+        # Computations run on a pool of exactly the threads asked for.
+        for n in (1, 3):
+            funcorr.set_num_threads(n)
+            assert funcorr.get_num_threads() == n and _funcorr._pool_threads() == n
         funcorr.set_num_threads(None)
+        assert _funcorr._pool_threads() == funcorr.get_num_threads() >= 1
         monkeypatch.setenv("FUNCORR_NUM_THREADS", "3")
-        assert funcorr.get_num_threads() == 3
+        assert funcorr.get_num_threads() == 3 and _funcorr._pool_threads() == 3
+        funcorr.set_num_threads(2)  # the call's setting wins over the environment
+        assert _funcorr._pool_threads() == 2
+        funcorr.set_num_threads(None)
         monkeypatch.setenv("FUNCORR_NUM_THREADS", "many")
         with pytest.raises(ValueError, match="FUNCORR_NUM_THREADS"):
             funcorr.cotangent_laplacian(*small_mesh())
