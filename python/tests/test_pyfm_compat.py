@@ -99,3 +99,31 @@ def test_compat_conventions_agree_with_funcorr():
         FunctionalMapping(TriMesh(str(X_PATH)), TriMesh(str(Y_PATH))).preprocess(n_ev=(20, 30)).fit()
     with pytest.raises(ValueError, match="optinit"):
         model.fit(optinit="ones")
+
+
+def test_pyfm_13_workflow():
+    """The workflow of pyFM 1.3 (FunctionalMapping's docstring in pyfmaps 1.3.1): the size given
+    to fit(K=...), FM_12, refinements returned, get_p2p(FM)."""
+    from funcorr.compat.pyfm import FunctionalMapping, TriMesh
+
+    mesh1 = TriMesh.load(str(X_PATH), area_normalize=True, center=True)
+    mesh2 = TriMesh.load(str(Y_PATH), area_normalize=True, center=True)
+    model = FunctionalMapping(mesh1, mesh2)
+    model.preprocess(descr_type="WKS")
+    model.fit(K=(40, 40), w_descr=1e0, w_lap=1e-1, w_dcomm=1e0, w_orient=0)
+
+    p2p = model.get_p2p()
+    FM_icp = model.icp_refine()
+    p2p_icp = model.get_p2p(FM_icp)
+    FM_zo = model.zoomout_refine(model.FM_12, nit=10, step=5)
+    p2p_zo = model.get_p2p(FM_zo)
+
+    assert model.FM_12.shape == (40, 40) and FM_icp.shape == (40, 40) and FM_zo.shape == (90, 90)
+    assert model.descr1.shape[1] == 100
+    for p in (p2p, p2p_icp, p2p_zo):
+        assert p.shape == (5000,) and p.max() < 4999
+    assert not np.array_equal(p2p, p2p_zo)
+    # pyFM < 1.3: refinements become the current map (FM_type), positional zoomout_refine(nit, step).
+    assert model.FM_type == "zoomout" and model.FM.shape == (90, 90)
+    model.change_FM_type("classic")
+    assert model.zoomout_refine(4, 5).shape == (60, 60)

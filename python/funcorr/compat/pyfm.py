@@ -76,6 +76,11 @@ class TriMesh:
         if center:
             self.translate(-self.center_mass)
 
+    @classmethod
+    def load(cls, path, **kwargs) -> "TriMesh":
+        """``TriMesh.load(path, area_normalize=..., center=...)`` (pyFM ≥ 1.3)."""
+        return cls(str(path), **kwargs)
+
     # geometry -------------------------------------------------------------------------------
     @property
     def vertlist(self) -> np.ndarray:
@@ -264,6 +269,8 @@ class TriMesh:
             d = np.minimum(d, np.linalg.norm(V - V[j], axis=1))
         return np.array(chosen)
 
+    farthest_point_sampling = extract_fps
+
     def export(self, filename: str, precision: Optional[int] = None):
         funcorr.write_mesh(filename, self._vertlist, self._facelist)
         return self
@@ -331,6 +338,19 @@ class FunctionalMapping:
         self._FM_base = FM
 
     @property
+    def FM_12(self) -> Optional[np.ndarray]:
+        """The fitted functional map (k2 × k1), before refinement (pyFM 1.3's attribute)."""
+        return self._FM_base
+
+    @FM_12.setter
+    def FM_12(self, FM):
+        self._FM_base = FM
+
+    @property
+    def has_spectral(self) -> bool:
+        return self.mesh1.eigenvalues is not None and self.mesh2.eigenvalues is not None
+
+    @property
     def preprocessed(self) -> bool:
         return self.descr1 is not None and self.descr2 is not None and self.mesh1.eigenvalues is not None
 
@@ -344,44 +364,76 @@ class FunctionalMapping:
             return lm.squeeze(), lm.squeeze().copy()
         return lm[:, 0], lm[:, 1]
 
-    def preprocess(self, n_ev=(50, 50), n_descr: int = 100, descr_type: str = "WKS", landmarks=None, subsample_step: int = 1, k_process: Optional[int] = None, verbose: bool = False):
+    def preprocess(self, n_ev=None, n_descr: int = 100, descr_type: Optional[str] = "WKS", landmarks=None, subsample_step: int = 1, k_process: Optional[int] = None, verbose: bool = False, k_descr: Optional[int] = None, landmarks_only: bool = False, K=None):
         """Spectra (max(k, k_process = 200) eigenpairs), descriptors (``descr_type`` "WKS" or
-        "HKS", ``n_descr`` of them from the first k1 / k2 eigenpairs, plus heat kernel maps at
-        the ``landmarks`` ((p,) same indices, or (p, 2))), every ``subsample_step``-th kept,
-        L²-normalized. Returns self."""
-        self.k1, self.k2 = n_ev
+        "HKS", ``n_descr`` of them from the first ``k_descr`` eigenpairs (default: k1 / k2 when
+        ``n_ev`` is given, else 128), plus heat kernel maps at the ``landmarks`` ((p,) same
+        indices, or (p, 2)); only those with ``landmarks_only``), every ``subsample_step``-th
+        kept, L²-normalized. Both pyFM APIs: ``preprocess(n_ev=(k1, k2), ...)`` (before 1.3)
+        and ``preprocess(n_descr, ...)`` with the size given to ``fit(K=...)`` (1.3). Returns self."""
+        if isinstance(n_ev, (int, np.integer)) and not isinstance(n_ev, bool):
+            n_descr, n_ev = int(n_ev), None  # pyFM 1.3: the first positional argument is n_descr
+        if n_ev is None and K is not None:
+            n_ev = K
+        if n_ev is not None:
+            self.k1, self.k2 = (n_ev, n_ev) if np.isscalar(n_ev) else n_ev
+        k1 = self._k1 if self._k1 is not None else (k_descr or 128)
+        k2 = self._k2 if self._k2 is not None else (k_descr or 128)
+        kd1, kd2 = (k_descr, k_descr) if k_descr is not None else (k1, k2)
         k_process = 200 if k_process is None else k_process
-        self.mesh1.process(max(self.k1, k_process), verbose=verbose)
-        self.mesh2.process(max(self.k2, k_process), verbose=verbose)
+        self.mesh1.process(max(k1, kd1, k_process), verbose=verbose)
+        self.mesh2.process(max(k2, kd2, k_process), verbose=verbose)
+        if descr_type is None:
+            return self
 
         def basis(mesh, k):
             return (mesh.eigenvalues[:k], mesh.eigenvectors[:, :k], mesh.vertex_areas)
 
-        b1, b2 = basis(self.mesh1, self.k1), basis(self.mesh2, self.k2)
+        b1, b2 = basis(self.mesh1, kd1), basis(self.mesh2, kd2)
         if descr_type == "WKS":
             d1, d2 = funcorr.wks(b1, n_descr), funcorr.wks(b2, n_descr)
         elif descr_type == "HKS":
             d1, d2 = funcorr.hks(b1, n_descr), funcorr.hks(b2, n_descr)
         else:
-            raise ValueError(f'Descriptor type "{descr_type}" not implemented')
+            raise ValueError(f'descr_type must be "WKS", "HKS", or None, got "{descr_type}"')
         if landmarks is not None and len(landmarks) > 0:
             l1, l2 = self._lmks(landmarks)
             # Heat kernel maps at the landmarks, n_descr times log-spaced on each shape as its HKS.
-            d1 = np.hstack([d1, funcorr.hkm(b1, l1, count=n_descr)])
-            d2 = np.hstack([d2, funcorr.hkm(b2, l2, count=n_descr)])
+            m1, m2 = funcorr.hkm(b1, l1, count=n_descr), funcorr.hkm(b2, l2, count=n_descr)
+            d1, d2 = (m1, m2) if landmarks_only else (np.hstack([d1, m1]), np.hstack([d2, m2]))
         self.descr1 = _normalize(d1[:, ::subsample_step], self.mesh1)
         self.descr2 = _normalize(d2[:, ::subsample_step], self.mesh2)
         if verbose:
             print(f"\n\t{self.descr1.shape[1]} descriptors kept")
         return self
 
-    def fit(self, w_descr: float = 1e-1, w_lap: float = 1e-3, w_dcomm: float = 1, w_orient: float = 0, orient_reversing: bool = False, optinit: str = "zeros", verbose: bool = False):
+    def add_descriptors(self, descr1, descr2, normalize: bool = True):
+        """Appends descriptors (n1, p) and (n2, p) (L²-normalized unless ``normalize=False``)."""
+        d1, d2 = np.asarray(descr1, dtype=np.float64), np.asarray(descr2, dtype=np.float64)
+        if d1.ndim == 1:
+            d1, d2 = d1[:, None], d2[:, None]
+        if normalize:
+            d1, d2 = _normalize(d1, self.mesh1), _normalize(d2, self.mesh2)
+        self.descr1 = d1 if self.descr1 is None else np.hstack([self.descr1, d1])
+        self.descr2 = d2 if self.descr2 is None else np.hstack([self.descr2, d2])
+        return self
+
+    def fit(self, w_descr: float = 1e-1, w_lap: float = 1e-3, w_dcomm: float = 1, w_orient: float = 0, orient_reversing: bool = False, optinit: str = "zeros", verbose: bool = False, K=None, use_resolvent_laplacian: Optional[bool] = None, resolvent_gamma: float = 0.5, factr=None, pgtol=None, normalize_weights: bool = True):
         """The functional map minimizing descriptor preservation (``w_descr``), Laplacian
-        commutativity (``w_lap``, mask (λ₁ − λ₂)²), descriptor commutativity (``w_dcomm``) and
-        orientation preservation (``w_orient``; reversal with ``orient_reversing``), solved
-        exactly by funcorr (``optinit`` is checked but the solution does not depend on it)."""
+        commutativity (``w_lap``; mask (λ₁ − λ₂)², or the resolvent mask with
+        ``use_resolvent_laplacian=True``, the default when the size is given as ``K`` as in
+        pyFM 1.3), descriptor commutativity (``w_dcomm``) and orientation preservation
+        (``w_orient``; reversal with ``orient_reversing``), solved exactly by funcorr
+        (``optinit``, ``factr``, ``pgtol`` are the L-BFGS settings of pyFM: checked, not needed).
+        Sets ``FM_12`` (and ``FM``). Returns self."""
         if optinit not in ("random", "identity", "zeros"):
             raise ValueError(f"optinit arg should be 'random', 'identity' or 'zeros', not {optinit}")
+        if resolvent_gamma != 0.5:
+            raise ValueError("resolvent_gamma: funcorr's resolvent mask has γ = 0.5")
+        if K is not None:
+            self.k1, self.k2 = (K, K) if np.isscalar(K) else K
+            if use_resolvent_laplacian is None:
+                use_resolvent_laplacian = True
         if not self.preprocessed:
             self.preprocess()
         if self.k1 != self.k2:
@@ -396,19 +448,25 @@ class FunctionalMapping:
             w_lap=w_lap,
             w_dcomm=w_dcomm,
             w_orient=w_orient,
-            mask="standard",
+            mask="resolvent" if use_resolvent_laplacian else "standard",
             orientation="reverse" if orient_reversing else "preserve",
         )
         self.FM = C
+        self._FM_icp = self._FM_zo = None
+        self._FM_type = "classic"
         if verbose:
             print(f"\tFitted a {C.shape[0]}×{C.shape[1]} map, energy {energy:.3e}")
         return self
 
-    def get_p2p(self, use_adj: bool = False, n_jobs: int = 1) -> np.ndarray:
-        """(n2,) ``p2p_21``: vertex i of mesh2 matched to vertex p2p_21[i] of mesh1."""
-        if self.FM is None:
+    def get_p2p(self, FM=None, use_adj: bool = False, n_jobs=None) -> np.ndarray:
+        """(n2,) ``p2p_21``: vertex i of mesh2 matched to vertex p2p_21[i] of mesh1, from ``FM``
+        (default: the current map, ``FM``)."""
+        if isinstance(FM, bool):  # pyFM < 1.3: get_p2p(use_adj)
+            FM, use_adj = None, FM
+        FM = self.FM if FM is None else np.asarray(FM)
+        if FM is None:
             raise ValueError("Model should be fit before computing the p2p map")
-        return funcorr.maps_from_fmap(self.mesh1._prepared, self.mesh2._prepared, self.FM)[1]
+        return funcorr.maps_from_fmap(self.mesh1._prepared, self.mesh2._prepared, FM)[1]
 
     @property
     def p2p_21(self) -> np.ndarray:
@@ -419,31 +477,42 @@ class FunctionalMapping:
     def p2p(self) -> np.ndarray:
         return self.get_p2p()
 
-    def icp_refine(self, nit: int = 10, tol=None, use_adj: bool = False, overwrite: bool = True, verbose: bool = False, n_jobs: int = 1):
-        """ICP refinement of the current FM (``nit`` iterations at most; stops when the point map
-        no longer changes)."""
-        if not self.fitted:
+    def icp_refine(self, FM=None, nit: int = 10, tol=None, use_adj: bool = False, overwrite: bool = True, verbose: bool = False, n_jobs=None):
+        """ICP refinement of ``FM`` (default: the current map) with ``nit`` iterations at most
+        (it stops when the point map no longer changes). Stores it as the "icp" map (the current
+        one with ``overwrite``, as pyFM < 1.3) and returns it (as pyFM 1.3)."""
+        if FM is not None and np.ndim(FM) == 0:  # pyFM < 1.3: icp_refine(nit, ...)
+            FM, nit = None, int(FM)
+        FM = self.FM if FM is None else np.asarray(FM)
+        if FM is None:
             raise ValueError("The Functional map must be fit before refining it")
-        self._FM_icp, _ = funcorr.icp_refine(self.mesh1._prepared, self.mesh2._prepared, self.FM, iterations=nit if nit is not None else 50)
+        self._FM_icp, _ = funcorr.icp_refine(self.mesh1._prepared, self.mesh2._prepared, FM, iterations=nit if nit is not None else 50)
         if overwrite:
             self.FM_type = "icp"
-        return self
+        return self._FM_icp
 
-    def zoomout_refine(self, nit: int = 10, step: int = 1, subsample=None, overwrite: bool = True, verbose: bool = False):
-        """ZoomOut of the current FM: ``nit`` iterations of ``step`` (to k + nit · step)."""
-        if not self.fitted:
+    def zoomout_refine(self, FM=None, nit: Optional[int] = None, step: Optional[int] = None, subsample=None, overwrite: bool = True, verbose: bool = False):
+        """ZoomOut of ``FM`` (default: the current map): ``nit`` iterations of ``step`` (to
+        k + nit · step). Stores it as the "zoomout" map (the current one with ``overwrite``, as
+        pyFM < 1.3) and returns it (as pyFM 1.3)."""
+        if FM is not None and np.ndim(FM) == 0:  # pyFM < 1.3: zoomout_refine(nit, step, ...)
+            FM, nit, step = None, int(FM), (nit if nit is not None else step)
+        nit = 10 if nit is None else nit
+        step = 1 if step is None else step
+        FM = self.FM if FM is None else np.asarray(FM)
+        if FM is None:
             raise ValueError("The Functional map must be fit before refining it")
         if subsample:
             warnings.warn("funcorr's ZoomOut runs on every vertex; subsample is not used", stacklevel=2)
-        k = self.FM.shape[0]
+        k = FM.shape[0]
         need = k + nit * step
         for mesh in (self.mesh1, self.mesh2):
             if len(mesh.eigenvalues) < need:
                 mesh.process(need)
-        self._FM_zo, _ = funcorr.zoomout_refine(self.mesh1._prepared, self.mesh2._prepared, self.FM, k_final=need, step=step)
+        self._FM_zo, _ = funcorr.zoomout_refine(self.mesh1._prepared, self.mesh2._prepared, FM, k_final=need, step=step)
         if overwrite:
             self.FM_type = "zoomout"
-        return self
+        return self._FM_zo
 
     def project(self, func, k=None, mesh_ind: int = 1):
         mesh, kk = (self.mesh1, self.k1) if mesh_ind == 1 else (self.mesh2, self.k2)
