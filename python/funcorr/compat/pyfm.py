@@ -6,6 +6,12 @@
                                                                   #      from pyFM.functional import FunctionalMapping
     import funcorr.compat.pyfm as pyFM                            # pyFM.eval.accuracy(...)
 
+Both pyFM APIs run: the one before 1.3 (``preprocess(n_ev=(k1, k2))``, ``fit()``,
+refinements stored and chosen by ``change_FM_type``) and 1.3's (``TriMesh.load``,
+``fit(K=...)``, ``FM_12``, refinements returned, ``get_p2p(FM)``); one difference: after a
+refinement, ``get_p2p()`` without an argument uses the refined map (the earlier API's
+``FM_type`` rule), where pyFM 1.3 would use ``FM_12``.
+
 Conventions are pyFM's: ``FM`` (k2 × k1) maps functions on mesh1 to mesh2 (funcorr's ``C`` with
 X = mesh1, Y = mesh2), and ``p2p_21 = model.get_p2p()`` gives for each vertex of mesh2 a vertex
 of mesh1 (funcorr's ``map_yx``).
