@@ -55,6 +55,7 @@ __all__ = [
     "icp_refine",
     "zoomout_refine",
     "maps_from_fmap",
+    "soft_map",
     "fmap_from_map",
     "axiomatic_fmap",
     "geodesic_distances",
@@ -298,6 +299,12 @@ def maps_from_fmap(X: PreparedShape, Y: PreparedShape, C) -> Tuple[np.ndarray, n
     """Point maps of a functional map C (k × k, X → Y coefficients): ``(map_xy (n,), map_yx (m,))``
     by nearest neighbours in the spectral embedding."""
     return _funcorr.maps_from_fmap(X, Y, C)
+
+
+def soft_map(X: PreparedShape, Y: PreparedShape, C, i: int) -> np.ndarray:
+    """The soft map T δ_i of vertex i of X: the function (m,) on Y that a functional map C
+    (k × k, X → Y coefficients) gives the delta at i (``--soft i`` of ``funcorr match``)."""
+    return _funcorr.soft_map(X, Y, C, i)
 
 
 def fmap_from_map(X: PreparedShape, Y: PreparedShape, map_yx, k: int) -> np.ndarray:

@@ -332,11 +332,19 @@ fn match_shapes<'py>(
     };
     let mut o = options::Opts::new(options)?;
     let (opts, basis_k, who) = options::match_options(&mut o, rich)?;
+    let preparation_keys = ["laplacian", "cloud_neighbours", "knn", "vertex_weights", "sigma", "cache_dir"];
+    let given: Vec<&str> = preparation_keys.iter().copied().filter(|k| o.has(k)).collect();
     let choice = laplacian_choice(&mut o)?;
     let seg = options::segmentation(&mut o)?;
     let cache = cache_arg(o.take("cache_dir").as_ref())?;
     o.finish()?;
     let (sx, sy) = (side(x, "X")?, side(y, "Y")?);
+    if let (Some(key), true) = (given.first(), matches!(sx, Side::Ready(_)) && matches!(sy, Side::Ready(_))) {
+        return Err(value_error(
+            key,
+            "X and Y are prepared already (their Laplacians and bases are fixed): give it to funcorr.prepare",
+        ));
+    }
     for (s, name) in [(&sx, "X"), (&sy, "Y")] {
         if let Side::Raw(shape) = s {
             check_k(shape, basis_k, &who, &format!("{who} (for {name})"))?;
@@ -645,6 +653,33 @@ fn axiomatic_fmap<'py>(
     Ok((arrays::mat_out(py, c.as_ref()), energy))
 }
 
+/// The soft map T δ_i of vertex i of X (a function on Y, length m) of a functional map C
+/// (k × k, X → Y coefficients): Ψ_k C Φ_kᵀ A_X δ_i, up to the mass of vertex i.
+#[pyfunction]
+fn soft_map<'py>(
+    py: Python<'py>,
+    x: &Bound<'py, PyAny>,
+    y: &Bound<'py, PyAny>,
+    c: &Bound<'py, PyAny>,
+    i: usize,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let (px, py_) = (prepared_arg(x, "X")?, prepared_arg(y, "Y")?);
+    let c = fmap_arg(c, "C")?;
+    check_c_fits(&c, &px, &py_, "C")?;
+    if i >= px.n() {
+        return Err(value_error("i", format!("vertex {i} of X does not exist (n = {})", px.n())));
+    }
+    let t = compute(py, move || {
+        funcorr::pointwise::soft_map_column(
+            px.basis.eigenvectors.as_ref(),
+            py_.basis.eigenvectors.as_ref(),
+            c.as_ref(),
+            i,
+        )
+    })?;
+    Ok(arrays::vec_out(py, t))
+}
+
 /// The mesh of a prepared shape or a shape argument (errors unless it is a triangle mesh).
 pub(crate) fn mesh_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Arc<TriMesh>> {
     if let Ok(p) = obj.cast::<PyPrepared>() {
@@ -688,5 +723,6 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fmap_from_map, m)?)?;
     m.add_function(wrap_pyfunction!(axiomatic_fmap, m)?)?;
     m.add_function(wrap_pyfunction!(match_basis_size, m)?)?;
+    m.add_function(wrap_pyfunction!(soft_map, m)?)?;
     Ok(())
 }

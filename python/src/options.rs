@@ -30,6 +30,10 @@ impl<'py> Opts<'py> {
         Ok(Opts { items })
     }
 
+    pub(crate) fn has(&self, key: &str) -> bool {
+        self.items.iter().any(|(k, _)| k == key)
+    }
+
     pub(crate) fn take(&mut self, key: &str) -> Option<Bound<'py, PyAny>> {
         let i = self.items.iter().position(|(k, _)| k == key)?;
         Some(self.items.remove(i).1)

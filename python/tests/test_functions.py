@@ -263,3 +263,19 @@ def test_point_clouds_and_feature_data(mesh_x, mesh_y, ground_truth):
     assert P.vertices.shape == (300, 5) and abs(P.eigenvalues[0]) < 1e-8
     W, A = funcorr.knn_laplacian(P.vertices, k=10)
     assert (funcorr.stiffness(P) != W).nnz == 0
+    Q = pickle.loads(pickle.dumps(P))
+    assert np.array_equal(Q.eigenvectors, P.eigenvectors) and (funcorr.stiffness(Q) != W).nnz == 0
+    with pytest.raises(ValueError, match="laplacian: X and Y are prepared already"):
+        funcorr.match(X, Y, laplacian="knn")
+
+
+def test_soft_map(prepared_pair):
+    X, Y = prepared_pair
+    r = funcorr.match(X, Y, method="fmap", data="wks:50", k=30, refine="none")
+    t = funcorr.soft_map(X, Y, r.C, 100)
+    assert t.shape == (Y.n,)
+    # The soft map of vertex 100 peaks near the vertex the point map sends it to.
+    d = funcorr.geodesic_distances(Y, int(r.map_xy[100]), method="dijkstra")
+    assert d[np.argmax(t)] < 0.2 * d.max()
+    with pytest.raises(ValueError, match="i: vertex 4999 of X does not exist"):
+        funcorr.soft_map(X, Y, r.C, 4999)
