@@ -39,7 +39,7 @@ import numpy as np
 import funcorr
 from funcorr import _funcorr
 
-__all__ = ["PairResult", "match_pairs"]
+__all__ = ["PairResult", "Dataset", "load_dataset", "match_pairs"]
 
 
 @dataclass
@@ -67,6 +67,43 @@ class PairResult:
 
 
 GroundTruth = Mapping[str, Any]
+
+
+@dataclass
+class Dataset:
+    """A data set in the layout ``funcorr bench`` reads: shapes ``NAME.off``, ``pairs.txt``
+    (``X<tab>Y`` per line) and template points ``corres/NAME.vts`` (or ``NAME.vts``) with their
+    mirrored ``NAME.sym.vts``; the arguments of :func:`match_pairs`."""
+
+    shapes: Dict[str, str]
+    pairs: List[Tuple[str, str]]
+    ground_truth: Dict[str, np.ndarray]
+    symmetric: Dict[str, np.ndarray]
+
+    def match(self, **kwargs) -> List["PairResult"]:
+        """:func:`match_pairs` on every pair, evaluated against the ground truth."""
+        return match_pairs(self.shapes, self.pairs, ground_truth=self.ground_truth, symmetric=self.symmetric, **kwargs)
+
+
+def load_dataset(path, limit: Optional[int] = None) -> Dataset:
+    """Reads a data set (see :class:`Dataset`): the first ``limit`` pairs of ``pairs.txt``."""
+    root = Path(path)
+    lines = [l.split() for l in (root / "pairs.txt").read_text().splitlines() if l.strip()]
+    pairs = [(l[0], l[1]) for l in lines][:limit]
+    names = sorted({n for p in pairs for n in p})
+    shapes, gt, sym = {}, {}, {}
+    for n in names:
+        shape = root / f"{n}.off"
+        if not shape.exists():
+            raise FileNotFoundError(f"{root / 'pairs.txt'} names {n!r}, but {shape} does not exist")
+        shapes[n] = str(shape)
+        for d in (root / "corres", root):
+            if (d / f"{n}.vts").exists():
+                gt[n] = funcorr.read_vts(d / f"{n}.vts")
+                if (d / f"{n}.sym.vts").exists():
+                    sym[n] = funcorr.read_vts(d / f"{n}.sym.vts")
+                break
+    return Dataset(shapes, pairs, gt, sym)
 
 
 def _names(shapes) -> Dict[str, Any]:

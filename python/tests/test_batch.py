@@ -88,3 +88,18 @@ def test_ray_engine_gives_the_same_maps(collection, local_results):
                 assert a.evaluation["mean"] == b.evaluation["mean"]
         else:
             assert "shape 'bad'" in b.error
+
+
+def test_a_data_set_in_the_bench_layout(root, tmp_path):
+    from funcorr.batch import load_dataset
+
+    ds = load_dataset(root / "data" / "faust")
+    assert ds.pairs == [("tr_reg_000", "tr_reg_001"), ("tr_reg_001", "tr_reg_000")]
+    assert set(ds.ground_truth) == set(ds.symmetric) == {"tr_reg_000", "tr_reg_001"}
+    results = ds.match(n_jobs=2, threads_per_job=1, geodesics="dijkstra", **OPTIONS)
+    assert all(r.ok and r.evaluation["symmetric"] for r in results)
+    direct = funcorr.match(X_PATH, Y_PATH, **OPTIONS)
+    assert np.array_equal(results[0].map_xy, direct.map_xy)
+    (tmp_path / "pairs.txt").write_text("a\tb\n")
+    with pytest.raises(FileNotFoundError, match="names 'a'"):
+        load_dataset(tmp_path)

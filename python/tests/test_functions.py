@@ -187,7 +187,7 @@ def test_evaluation(mesh_y, ground_truth):
     assert ev["mean"] == 0 and ev["at_005"] == 1 and np.all(ev["curve"] == 1)
     # Every point mapped to the mirrored point: large error, zero with symmetric flips allowed.
     map_xy[gx] = gs
-    assert funcorr.evaluate(map_xy, mesh_y, gx, gy)["mean"] > 0.05
+    assert funcorr.evaluate(map_xy, mesh_y, gx, gy, geodesics="heat")["mean"] > 0.05
     ev = funcorr.evaluate(map_xy, mesh_y, gx, gy, gs)
     assert ev["mean"] == 0 and ev["symmetric"]
     t, c = funcorr.cumulative_curve([0.0, 0.01, 0.2])
