@@ -54,20 +54,39 @@ impl PyPrepared {
             Shape::Points(_) => arrays::faces_out(py, &[]),
         }
     }
-    /// λ₁ ≤ … ≤ λ_k.
+    /// λ₁ ≤ … ≤ λ_k (read-only view of the shape's data, no copy).
     #[getter]
-    fn eigenvalues<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        arrays::vec_out(py, self.inner.basis.eigenvalues.clone())
+    fn eigenvalues<'py>(this: Bound<'py, Self>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let v = numpy::ndarray::ArrayView1::from(&this.get().inner.basis.eigenvalues[..]);
+        // SAFETY: the basis lives in an Arc owned by `this`, never mutated nor reallocated; the
+        // array keeps `this` alive as its base, and is made read-only.
+        readonly(unsafe { PyArray1::borrow_from_array(&v, this.clone().into_any()) })
     }
-    /// Φ (n × k), Φᵀ diag(A) Φ = I.
+    /// Φ (n × k), Φᵀ diag(A) Φ = I (read-only view of the shape's data, Fortran order, no copy).
     #[getter]
-    fn eigenvectors<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
-        arrays::mat_out(py, self.inner.basis.eigenvectors.as_ref())
+    fn eigenvectors<'py>(this: Bound<'py, Self>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        use numpy::ndarray::ShapeBuilder;
+        let m = this.get().inner.basis.eigenvectors.as_ref();
+        let (rs, cs) = (m.row_stride(), m.col_stride());
+        if rs < 0 || cs < 0 {
+            return Ok(arrays::mat_out(this.py(), m));
+        }
+        // SAFETY: `m` is a column-major matrix of n × k finite elements with these strides
+        // (in elements); the memory is owned as in `eigenvalues`.
+        let view = unsafe {
+            numpy::ndarray::ArrayView2::from_shape_ptr(
+                (m.nrows(), m.ncols()).strides((rs as usize, cs as usize)),
+                m.as_ptr(),
+            )
+        };
+        readonly(unsafe { PyArray2::borrow_from_array(&view, this.clone().into_any()) })
     }
-    /// A (n): the vertex weights (lumped mass).
+    /// A (n): the vertex weights (lumped mass; read-only view, no copy).
     #[getter]
-    fn mass<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        arrays::vec_out(py, self.inner.basis.mass.clone())
+    fn mass<'py>(this: Bound<'py, Self>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let v = numpy::ndarray::ArrayView1::from(&this.get().inner.basis.mass[..]);
+        // SAFETY: as in `eigenvalues`.
+        readonly(unsafe { PyArray1::borrow_from_array(&v, this.clone().into_any()) })
     }
     /// The stiffness matrix W as CSR parts (indptr, indices, data) (W is symmetric).
     fn _stiffness<'py>(&self, py: Python<'py>) -> (I64s<'py>, I64s<'py>, F64s<'py>) {
@@ -109,6 +128,12 @@ impl PyPrepared {
         )?;
         Ok((f, args))
     }
+}
+
+/// The array made read-only (it views data that Rust shares).
+fn readonly<'py, T>(a: Bound<'py, T>) -> PyResult<Bound<'py, T>> {
+    a.as_any().getattr("flags")?.set_item("WRITEABLE", false)?;
+    Ok(a)
 }
 
 fn point_set_out<'py>(py: Python<'py>, p: &PointSet) -> Bound<'py, PyArray2<f64>> {

@@ -74,6 +74,17 @@ def test_eigenbasis_is_mass_orthonormal_and_deterministic(mesh_x):
     assert np.array_equal(evals, evals2) and np.array_equal(Phi, Phi2)
 
 
+def test_prepared_shape_arrays_are_read_only_views(prepared_pair):
+    X, _ = prepared_pair
+    a, b = X.eigenvectors, X.eigenvectors
+    assert np.shares_memory(a, b) and a.shape == (X.n, X.k) and not a.flags.writeable
+    assert not X.eigenvalues.flags.writeable and not X.mass.flags.writeable
+    with pytest.raises(ValueError, match="read-only"):
+        a[0, 0] = 1.0
+    del X  # the arrays keep the shape alive
+    assert np.isfinite(a).all() and abs(a[:, 0].std()) < 1e-9  # φ₁ is constant
+
+
 def test_prepared_shapes_pickle_bit_for_bit(prepared_pair):
     X, _ = prepared_pair
     Z = pickle.loads(pickle.dumps(X))
