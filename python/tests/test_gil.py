@@ -1,4 +1,5 @@
-"""The GIL is released around Rust computations: two Python threads compute at the same time."""
+"""The GIL is released around Rust computations: two Python threads compute at the same time,
+and Python keeps running meanwhile."""
 import threading
 import time
 
@@ -7,71 +8,75 @@ import numpy as np
 import funcorr
 
 
+def calibrated_sources(mesh, seconds=0.8):
+    """Sources whose exact geodesics take about `seconds` on one thread."""
+    s = 4
+    while True:
+        t0 = time.perf_counter()
+        funcorr.geodesic_distances(mesh, np.arange(s))
+        took = time.perf_counter() - t0
+        if took > seconds or s >= 1024:
+            return s, took
+        s *= 2
+
+
+def run_with_ticks(mesh, jobs):
+    """Runs `jobs` (lists of sources) on worker threads while this thread runs a Python loop;
+    returns the workers' (start, end) and the times of the loop's iterations."""
+    barrier = threading.Barrier(len(jobs) + 1)
+    spans, results = {}, {}
+
+    def work(i, sources):
+        barrier.wait()
+        t0 = time.perf_counter()
+        results[i] = funcorr.geodesic_distances(mesh, sources)
+        spans[i] = (t0, time.perf_counter())
+
+    threads = [threading.Thread(target=work, args=(i, s)) for i, s in enumerate(jobs)]
+    for t in threads:
+        t.start()
+    barrier.wait()
+    ticks = []
+    while any(t.is_alive() for t in threads):
+        ticks.append(time.perf_counter())
+    for t in threads:
+        t.join()
+    return spans, np.array(ticks), results
+
+
+def largest_gap(ticks, start, end):
+    inside = ticks[(ticks > start) & (ticks < end)]
+    points = np.concatenate([[start], inside, [end]])
+    return np.diff(points).max()
+
+
 def test_two_threads_compute_at_the_same_time(mesh_y):
-    funcorr.set_num_threads(1)  # one thread per call: two calls need two threads of their own
+    P = funcorr.prepare(mesh_y, k=5)  # a prepared mesh: the calls convert no numpy input
+    funcorr.set_num_threads(1)  # one thread per call: each call needs a thread of its own
     try:
-        # Calibrate a call of about 0.6 s (exact geodesics from s sources).
-        s = 4
-        while True:
-            t0 = time.perf_counter()
-            funcorr.geodesic_distances(mesh_y, np.arange(s))
-            took = time.perf_counter() - t0
-            if took > 0.6 or s > 4096:
-                break
-            s *= 2
-        barrier = threading.Barrier(2)
-        spans = {}
-        results = {}
-
-        def work(name, sources):
-            barrier.wait()
-            t0 = time.perf_counter()
-            results[name] = funcorr.geodesic_distances(mesh_y, sources)
-            spans[name] = (t0, time.perf_counter())
-
-        threads = [
-            threading.Thread(target=work, args=("a", np.arange(s))),
-            threading.Thread(target=work, args=("b", np.arange(s, 2 * s))),
-        ]
-        for t in threads:
-            t.start()
-        for t in threads:
-            t.join()
-        (a0, a1), (b0, b1) = spans["a"], spans["b"]
-        overlap = min(a1, b1) - max(a0, b0)
-        shorter = min(a1 - a0, b1 - b0)
-        # Holding the GIL, one call would start only after the other returned (overlap ≤ 0 up
-        # to the moment between the barrier and the call); released, they overlap almost fully.
-        assert overlap > 0.5 * shorter, (spans, s, took)
-        assert results["a"].shape == (len(mesh_y[0]), s)
-        assert np.array_equal(results["a"][:, :1], funcorr.geodesic_distances(mesh_y, [0]))
+        s, took = calibrated_sources(P)
+        spans, ticks, results = run_with_ticks(P, [np.arange(s), np.arange(s, 2 * s)])
+        (a0, a1), (b0, b1) = spans[0], spans[1]
+        both = (max(a0, b0), min(a1, b1))
+        # The two calls overlap in time ...
+        assert both[1] - both[0] > 0.5 * min(a1 - a0, b1 - b0), (spans, s, took)
+        # ... and while both were inside Rust, this thread kept running Python: with the GIL
+        # held by a computation, it would have stopped for the whole computation (≈ `took`).
+        assert largest_gap(ticks, *both) < 0.25 * took, (largest_gap(ticks, *both), took)
+        assert results[0].shape == (P.n, s)
+        assert np.array_equal(results[0][:, :1], funcorr.geodesic_distances(P, [0]))
     finally:
         funcorr.set_num_threads(None)
 
 
 def test_python_runs_while_rust_computes(mesh_y):
-    """The main thread keeps running Python while a thread is inside a long Rust call."""
+    P = funcorr.prepare(mesh_y, k=5)
     funcorr.set_num_threads(1)
     try:
-        inside = threading.Event()
-        done = threading.Event()
-
-        def work():
-            inside.set()
-            funcorr.geodesic_distances(mesh_y, np.arange(64))
-            done.set()
-
-        t = threading.Thread(target=work)
-        t.start()
-        inside.wait()
-        ticks = 0
-        t0 = time.perf_counter()
-        while not done.is_set():
-            ticks += 1
-        elapsed = time.perf_counter() - t0
-        t.join()
-        # Python-level loop iterations run at millions per second when the GIL is free; with a
-        # held GIL the loop would be stuck for the whole call.
-        assert elapsed > 0.05 and ticks / elapsed > 10_000, (ticks, elapsed)
+        s, took = calibrated_sources(P)
+        spans, ticks, _ = run_with_ticks(P, [np.arange(s)])
+        t0, t1 = spans[0]
+        assert t1 - t0 > 0.5 * took
+        assert largest_gap(ticks, t0, t1) < 0.25 * took, (largest_gap(ticks, t0, t1), took)
     finally:
         funcorr.set_num_threads(None)
