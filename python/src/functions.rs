@@ -14,7 +14,7 @@ use funcorr::shape::{Shape, TriMesh};
 
 use crate::arrays::{self, value_error, F64m, F64s, I64m, I64s};
 use crate::compute;
-use crate::matching::{basis_arg, geometry_arg, mesh_arg, prepared};
+use crate::prepared::{basis_arg, geometry_arg, mesh_arg, prepared_arg as prepared};
 
 type Csr<'py> = (I64s<'py>, I64s<'py>, F64s<'py>);
 

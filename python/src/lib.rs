@@ -10,6 +10,7 @@ mod arrays;
 mod functions;
 mod matching;
 mod options;
+mod prepared;
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -101,6 +102,7 @@ fn _funcorr(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(get_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(_pool_threads, m)?)?;
     functions::register(m)?;
+    prepared::register(m)?;
     matching::register(m)?;
     Ok(())
 }

@@ -1,0 +1,326 @@
+//! Prepared shapes (shape + Laplacian + eigenbasis; picklable, so that Ray can keep them in its
+//! object store), `prepare`, and the shape, basis and mesh arguments of the other functions.
+
+use std::sync::Arc;
+
+use numpy::{PyArray1, PyArray2};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+
+use funcorr::prepared::{LaplacianChoice, PreparedShape};
+use funcorr::shape::{PointSet, Shape, TriMesh};
+use funcorr::spectral::{Basis, BasisCache};
+
+use crate::arrays::{self, value_error, F64s, I64s};
+use crate::{compute, options};
+
+/// A shape with its Laplacian and its first k eigenpairs, computed once and reused by every
+/// pair it takes part in (`funcorr.prepare`). Pickles to its geometry and basis (the Laplacian
+/// is rebuilt on unpickling, bit for bit), so it can be put in Ray's object store.
+#[pyclass(frozen, module = "funcorr._funcorr", name = "PreparedShape")]
+pub(crate) struct PyPrepared {
+    pub(crate) inner: Arc<PreparedShape>,
+    pub(crate) choice: LaplacianChoice,
+}
+
+#[pymethods]
+impl PyPrepared {
+    /// Number of vertices n.
+    #[getter]
+    fn n(&self) -> usize {
+        self.inner.n()
+    }
+    /// Number of eigenpairs k.
+    #[getter]
+    fn k(&self) -> usize {
+        self.inner.basis.k()
+    }
+    /// Vertex positions (n × 3; for feature point sets the points, n × d).
+    #[getter]
+    fn vertices<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
+        match &self.inner.shape {
+            Shape::Mesh(m) => arrays::points3_out(py, m.vertices()).into_any(),
+            Shape::Points(p) => point_set_out(py, p).into_any(),
+        }
+    }
+    /// Triangles (f × 3, int64; (0, 3) for point clouds).
+    #[getter]
+    fn faces<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<i64>> {
+        match &self.inner.shape {
+            Shape::Mesh(m) => arrays::faces_out(py, m.faces()),
+            Shape::Points(_) => arrays::faces_out(py, &[]),
+        }
+    }
+    /// λ₁ ≤ … ≤ λ_k (read-only view of the shape's data, no copy).
+    #[getter]
+    fn eigenvalues<'py>(this: Bound<'py, Self>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let v = numpy::ndarray::ArrayView1::from(&this.get().inner.basis.eigenvalues[..]);
+        // SAFETY: the basis lives in an Arc owned by `this`, never mutated nor reallocated; the
+        // array keeps `this` alive as its base, and is made read-only.
+        readonly(unsafe { PyArray1::borrow_from_array(&v, this.clone().into_any()) })
+    }
+    /// Φ (n × k), Φᵀ diag(A) Φ = I (read-only view of the shape's data, Fortran order, no copy).
+    #[getter]
+    fn eigenvectors<'py>(this: Bound<'py, Self>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        use numpy::ndarray::ShapeBuilder;
+        let m = this.get().inner.basis.eigenvectors.as_ref();
+        let (rs, cs) = (m.row_stride(), m.col_stride());
+        if rs < 0 || cs < 0 {
+            return Ok(arrays::mat_out(this.py(), m));
+        }
+        // SAFETY: `m` is a column-major matrix of n × k finite elements with these strides
+        // (in elements); the memory is owned as in `eigenvalues`.
+        let view = unsafe {
+            numpy::ndarray::ArrayView2::from_shape_ptr(
+                (m.nrows(), m.ncols()).strides((rs as usize, cs as usize)),
+                m.as_ptr(),
+            )
+        };
+        readonly(unsafe { PyArray2::borrow_from_array(&view, this.clone().into_any()) })
+    }
+    /// A (n): the vertex weights (lumped mass; read-only view, no copy).
+    #[getter]
+    fn mass<'py>(this: Bound<'py, Self>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let v = numpy::ndarray::ArrayView1::from(&this.get().inner.basis.mass[..]);
+        // SAFETY: as in `eigenvalues`.
+        readonly(unsafe { PyArray1::borrow_from_array(&v, this.clone().into_any()) })
+    }
+    /// The stiffness matrix W as CSR parts (indptr, indices, data) (W is symmetric).
+    fn _stiffness<'py>(&self, py: Python<'py>) -> (I64s<'py>, I64s<'py>, F64s<'py>) {
+        crate::functions::csr_parts(py, &self.inner.laplacian)
+    }
+    /// Whether the shape is a triangle mesh.
+    #[getter]
+    fn is_mesh(&self) -> bool {
+        matches!(self.inner.shape, Shape::Mesh(_))
+    }
+    fn __repr__(&self) -> String {
+        let kind = match &self.inner.shape {
+            Shape::Mesh(m) => format!("mesh, {} faces", m.n_faces()),
+            Shape::Points(p) => format!("{}-D points", p.dim()),
+        };
+        format!("PreparedShape(n={}, {kind}, k={})", self.inner.n(), self.inner.basis.k())
+    }
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyTuple>)> {
+        let f = py.import("funcorr._funcorr")?.getattr("_prepared_from_state")?;
+        let (pts, faces) = match &self.inner.shape {
+            Shape::Mesh(m) => {
+                (arrays::points3_out(py, m.vertices()).into_any(), arrays::faces_out(py, m.faces()).into_any())
+            }
+            Shape::Points(p) => (point_set_out(py, p).into_any(), py.None().into_bound(py)),
+        };
+        let choice = serde_json::to_string(&self.choice).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let b = &self.inner.basis;
+        let args = PyTuple::new(
+            py,
+            [
+                pts,
+                faces,
+                choice.into_pyobject(py)?.into_any(),
+                arrays::vec_out(py, b.eigenvalues.clone()).into_any(),
+                arrays::mat_out(py, b.eigenvectors.as_ref()).into_any(),
+                arrays::vec_out(py, b.mass.clone()).into_any(),
+                arrays::vec_out(py, b.residuals.clone()).into_any(),
+            ],
+        )?;
+        Ok((f, args))
+    }
+}
+
+/// The array made read-only (it views data that Rust shares).
+fn readonly<'py, T>(a: Bound<'py, T>) -> PyResult<Bound<'py, T>> {
+    a.as_any().getattr("flags")?.set_item("WRITEABLE", false)?;
+    Ok(a)
+}
+
+fn point_set_out<'py>(py: Python<'py>, p: &PointSet) -> Bound<'py, PyArray2<f64>> {
+    use numpy::IntoPyArray;
+    let d = p.dim();
+    numpy::ndarray::Array2::from_shape_fn((p.len(), d), |(i, j)| p.coords()[i * d + j]).into_pyarray(py)
+}
+
+/// Rebuilds a pickled [`PyPrepared`]: the shape, its Laplacian (recomputed, deterministic) and
+/// the stored basis.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn _prepared_from_state(
+    py: Python<'_>,
+    points: &Bound<'_, PyAny>,
+    faces: &Bound<'_, PyAny>,
+    choice: &str,
+    eigenvalues: &Bound<'_, PyAny>,
+    eigenvectors: &Bound<'_, PyAny>,
+    mass: &Bound<'_, PyAny>,
+    residuals: &Bound<'_, PyAny>,
+) -> PyResult<PyPrepared> {
+    let shape = if faces.is_none() {
+        Shape::Points(arrays::points(points, "points")?)
+    } else {
+        Shape::Mesh(arrays::mesh(points, faces, "vertices", "faces")?)
+    };
+    let choice: LaplacianChoice = serde_json::from_str(choice).map_err(|e| value_error("choice", e))?;
+    let basis = Basis {
+        eigenvalues: arrays::vector(eigenvalues, "eigenvalues")?,
+        eigenvectors: arrays::matrix(eigenvectors, "eigenvectors")?,
+        mass: arrays::vector(mass, "mass")?,
+        residuals: arrays::vector(residuals, "residuals")?,
+    };
+    if basis.n() != shape.n_vertices() || basis.mass.len() != basis.n() || basis.eigenvalues.len() != basis.k() {
+        return Err(value_error("eigenvectors", "the basis does not fit the shape"));
+    }
+    let p = compute(py, move || {
+        let (lap, surface) = funcorr::prepared::build_laplacian(&shape, choice)?;
+        Ok(PreparedShape::from_parts(shape, lap, basis, surface))
+    })?;
+    Ok(PyPrepared { inner: Arc::new(p), choice })
+}
+
+/// Laplacian options of `prepare` and `match`, read from a dict (keys `laplacian`,
+/// `cloud_neighbours`, `knn`, `vertex_weights`, `sigma`).
+pub(crate) fn laplacian_choice(opts: &mut options::Opts) -> PyResult<LaplacianChoice> {
+    use funcorr::laplacian::{Bandwidth, KnnOptions, VertexWeights};
+    let kind = opts.string("laplacian")?;
+    let cloud_k = opts.usize("cloud_neighbours")?.unwrap_or(funcorr::cloud::DEFAULT_NEIGHBOURS);
+    let knn_k = opts.usize("knn")?.unwrap_or(10);
+    let weights = opts.string("vertex_weights")?;
+    let sigma = opts.f64("sigma")?;
+    Ok(match kind.as_deref().unwrap_or("auto") {
+        "auto" => LaplacianChoice::Auto,
+        "cotan" | "cotangent" => LaplacianChoice::Cotangent,
+        "cloud" => LaplacianChoice::Cloud { k: cloud_k },
+        "knn" => LaplacianChoice::Knn(KnnOptions {
+            k: knn_k,
+            vertex_weights: match weights.as_deref().unwrap_or("identity") {
+                "identity" => VertexWeights::Identity,
+                "degree" => VertexWeights::Degree,
+                other => {
+                    return Err(value_error("vertex_weights", format!("{other:?}: expected 'identity' or 'degree'")))
+                }
+            },
+            bandwidth: sigma.map_or(Bandwidth::SelfTuning, Bandwidth::Fixed),
+        }),
+        other => {
+            return Err(value_error("laplacian", format!("{other:?}: expected 'auto', 'cotan', 'cloud' or 'knn'")))
+        }
+    })
+}
+
+/// The cache of `cache_dir` (None: no cache; True: the default directory).
+pub(crate) fn cache_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Option<BasisCache>> {
+    let Some(obj) = obj else { return Ok(None) };
+    if obj.is_none() {
+        return Ok(None);
+    }
+    if let Ok(b) = obj.extract::<bool>() {
+        return Ok(if b { BasisCache::default_dir().map(BasisCache::new) } else { None });
+    }
+    match arrays::path_arg(obj) {
+        Some(p) => Ok(Some(BasisCache::new(p))),
+        None => Err(value_error("cache_dir", "expected a directory path, True (the default directory) or None")),
+    }
+}
+
+pub(crate) fn check_k(shape: &Shape, k: usize, name: &str, what: &str) -> PyResult<()> {
+    let n = shape.n_vertices();
+    if k == 0 || k >= n {
+        return Err(value_error(
+            name,
+            format!("{what} asks for {k} eigenpairs, but the shape has n = {n} vertices (need 1 ≤ k < n)"),
+        ));
+    }
+    Ok(())
+}
+
+/// `prepare(shape, k, cache_dir, **laplacian options)`.
+#[pyfunction]
+#[pyo3(signature = (shape, k=200, cache_dir=None, **kwargs))]
+fn prepare(
+    py: Python<'_>,
+    shape: &Bound<'_, PyAny>,
+    k: usize,
+    cache_dir: Option<&Bound<'_, PyAny>>,
+    kwargs: Option<&Bound<'_, PyDict>>,
+) -> PyResult<PyPrepared> {
+    let mut opts = options::Opts::new(kwargs)?;
+    let choice = laplacian_choice(&mut opts)?;
+    opts.finish()?;
+    let cache = cache_arg(cache_dir)?;
+    let s = arrays::shape(shape, "shape")?;
+    check_k(&s, k, "k", "k")?;
+    let p = compute(py, move || PreparedShape::new(s, choice, k, cache.as_ref()))?;
+    Ok(PyPrepared { inner: Arc::new(p), choice })
+}
+
+pub(crate) fn prepared_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Arc<PreparedShape>> {
+    obj.cast::<PyPrepared>()
+        .map(|p| p.get().inner.clone())
+        .map_err(|_| value_error(name, "expected a PreparedShape (funcorr.prepare(shape, k))"))
+}
+
+/// A basis argument: a PreparedShape or a tuple (eigenvalues, eigenvectors, mass).
+pub(crate) fn basis_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Basis> {
+    if let Ok(p) = obj.cast::<PyPrepared>() {
+        return Ok(p.get().inner.basis.clone());
+    }
+    let t = obj
+        .cast::<PyTuple>()
+        .map_err(|_| value_error(name, "expected a PreparedShape or a tuple (eigenvalues, eigenvectors, mass)"))?;
+    if t.len() != 3 {
+        return Err(value_error(name, "expected a tuple (eigenvalues, eigenvectors, mass)"));
+    }
+    let evals = arrays::vector(&t.get_item(0)?, &format!("{name}[0] (eigenvalues)"))?;
+    let evecs = arrays::matrix(&t.get_item(1)?, &format!("{name}[1] (eigenvectors)"))?;
+    let mass = arrays::vector(&t.get_item(2)?, &format!("{name}[2] (mass)"))?;
+    if evecs.ncols() != evals.len() || evecs.nrows() != mass.len() || evals.is_empty() {
+        return Err(value_error(
+            name,
+            format!(
+                "eigenvectors {}×{} do not fit {} eigenvalues and {} weights",
+                evecs.nrows(),
+                evecs.ncols(),
+                evals.len(),
+                mass.len()
+            ),
+        ));
+    }
+    if let Some(i) = mass.iter().position(|a| *a <= 0.0) {
+        return Err(value_error(&format!("{name}[2] (mass)"), format!("entry {i} is not positive")));
+    }
+    let k = evals.len();
+    Ok(Basis { eigenvalues: evals, eigenvectors: evecs, mass, residuals: vec![0.0; k] })
+}
+
+/// The mesh of a prepared shape or a shape argument (errors unless it is a triangle mesh).
+pub(crate) fn mesh_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Arc<TriMesh>> {
+    if let Ok(p) = obj.cast::<PyPrepared>() {
+        return match &p.get().inner.shape {
+            Shape::Mesh(m) => Ok(Arc::new(m.clone())),
+            _ => Err(value_error(name, "expected a triangle mesh, got a point set")),
+        };
+    }
+    match arrays::shape(obj, name)? {
+        Shape::Mesh(m) => Ok(Arc::new(m)),
+        _ => Err(value_error(name, "expected a triangle mesh (V, F), got a point set")),
+    }
+}
+
+/// The geometry of a shape argument for drawing: vertices and faces (none for point clouds).
+pub(crate) fn geometry_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<arrays::Geometry> {
+    let shape = match obj.cast::<PyPrepared>() {
+        Ok(p) => p.get().inner.shape.clone(),
+        Err(_) => arrays::shape(obj, name)?,
+    };
+    match shape {
+        Shape::Mesh(m) => Ok((m.vertices().to_vec(), m.faces().to_vec())),
+        Shape::Points(p) if p.dim() == 3 => Ok((p.coords().chunks(3).map(|c| [c[0], c[1], c[2]]).collect(), vec![])),
+        Shape::Points(p) => Err(value_error(name, format!("expected a mesh or 3-D points, got {}-D points", p.dim()))),
+    }
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyPrepared>()?;
+    m.add_function(wrap_pyfunction!(_prepared_from_state, m)?)?;
+    m.add_function(wrap_pyfunction!(prepare, m)?)?;
+    Ok(())
+}
