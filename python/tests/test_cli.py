@@ -35,6 +35,12 @@ def test_default_match_equals_the_cli(cli, tmp_path, default_match):
             ["--data", "hks:40", "--candidates", "20,30", "--polish", "0", "--zoomout-to", "80", "--w-orientation", "1"],
             dict(data="hks:40", candidates=[20, 30], polish=0, zoomout_to=80, w_orientation=1.0),
         ),
+        (
+            ["--method", "completion", "--data", "wks:30", "--kprime", "40", "-k", "10", "--max-iterations", "5",
+             "--mu3", "0.5", "--init", "svd", "--refine", "zoomout", "--zoomout-to", "60", "--zoomout-step", "10"],
+            dict(method="completion", data="wks:30", kprime=40, k=10, max_iterations=5, mu3=0.5, init="svd",
+                 refine="zoomout", zoomout_to=60, zoomout_step=10),
+        ),
     ],
 )
 def test_options_match_the_cli_flags(cli, tmp_path, flags, options):

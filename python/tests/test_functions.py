@@ -242,6 +242,32 @@ def test_completion_method_runs(prepared_pair):
     assert r.report["solver"]["iterations"] <= 5
 
 
+@pytest.mark.parametrize(
+    "options",
+    [
+        dict(method="pokrass", k=20),
+        dict(method="coupled", k=20),
+        dict(method="completion", form="fixed-rank", kprime=40, k=10, max_iterations=3),
+        dict(method="completion", form="low-norm", kprime=40, k=10, max_iterations=3),
+    ],
+)
+def test_every_method_runs(prepared_pair, options):
+    X, Y = prepared_pair
+    r = funcorr.match(X, Y, data="wks:30", refine="none", **options)
+    k = options.get("kprime", options["k"])
+    assert r.C.shape == (k, k) and r.map_xy.shape == (X.n,) and r.map_yx.shape == (Y.n,)
+    assert r.report["options"]["method"] == options["method"]
+    if options["method"] == "completion":
+        assert r.report["solver"]["iterations"] <= 3
+        assert r.report["options"]["completion"]["form"] == options["form"]
+
+
+def test_the_dense_low_rank_form_refuses_large_shapes(prepared_pair):
+    X, Y = prepared_pair
+    with pytest.raises(ValueError, match="invalid form: the convex low-rank form"):
+        funcorr.match(X, Y, method="completion", form="low-rank", data="wks:30", kprime=40, k=10, refine="none")
+
+
 def test_default_match_is_accurate_and_renders(default_match, ground_truth):
     gx, gy, gs = ground_truth
     ev = default_match.evaluate(gx, gy, gs)
