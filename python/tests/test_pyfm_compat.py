@@ -27,9 +27,16 @@ def test_pyfm_quickstart_runs_with_the_import_changed(tmp_path):
     face_areas = mesh1.face_areas
     vertex_areas = mesh1.vertex_areas
     face_normals = mesh1.normals
+
+    # AREA WEIGHTED VERTEX NORMALS
     vertex_normals_a = mesh1.vertex_normals
 
+    # UNIFORM WEIGHTED VERTEX NORMALS
+    mesh1.set_vertex_normal_weighting("uniform")
+    vertex_normals_u = mesh1.vertex_normals
+
     dists = mesh1.geod_from(1000, robust=True)
+    S1_geod = mesh1.get_geodesic(verbose=True)
     mesh1.process(k=100, intrinsic=False, verbose=True)
 
     mesh1 = TriMesh(path1)
@@ -58,7 +65,10 @@ def test_pyfm_quickstart_runs_with_the_import_changed(tmp_path):
     model.zoomout_refine(nit=15, step=1, verbose=True)
     print(model.FM.shape)
     p2p_21_zo = model.get_p2p()
-    # ---- end of the quickstart; evaluation on the template points ----
+
+    # Compute geodesic distance matrix on the cat mesh
+    A_geod = mesh1.get_geodesic(verbose=True)
+    # ---- end of the quickstart but for its last cell: evaluation on the template points below ----
 
     # What the quickstart's lines must have given.
     assert (mesh1.n_vertices, mesh1.n_faces, mesh2.n_vertices) == (4999, 9994, 5000)
@@ -66,6 +76,8 @@ def test_pyfm_quickstart_runs_with_the_import_changed(tmp_path):
     assert np.isclose(area, 1.0)  # area_normalize
     assert np.allclose(np.linalg.norm(face_normals, axis=1), 1) and np.allclose(np.linalg.norm(vertex_normals_a, axis=1), 1)
     assert dists.shape == (4999,) and dists[1000] == 0
+    assert not np.allclose(vertex_normals_u, vertex_normals_a) and np.allclose(np.linalg.norm(vertex_normals_u, axis=1), 1)
+    assert S1_geod.shape == (4999, 4999) and np.allclose(S1_geod[1000], dists, rtol=0.1, atol=0.02)
     assert model.descr1.shape[1] == model.descr2.shape[1] == 6 * 100 // 5
     assert model.FM is not None and model.FM.shape == (50, 50) and model.FM_type == "zoomout"
     model.change_FM_type("classic")
@@ -76,8 +88,7 @@ def test_pyfm_quickstart_runs_with_the_import_changed(tmp_path):
     # pyFM.eval.accuracy on the template points: p2p maps mesh2 → mesh1, distances on mesh1.
     _, first = np.unique(gy, return_index=True)
     ty, tx = gy[first], gx[first]
-    D1 = mesh1.get_geodesic(dijkstra=True)
-    acc = {name: pyFM.eval.accuracy(p[ty], tx, D1, sqrt_area=mesh1.sqrtarea) for name, p in
+    acc = {name: pyFM.eval.accuracy(p[ty], tx, A_geod, sqrt_area=mesh1.sqrtarea) for name, p in
            [("fit", p2p_21), ("icp", p2p_21_icp), ("zoomout", p2p_21_zo)]}
     print(acc)
     # Refinement helps, and ZoomOut ends near the README's quality (errors ×100, not ×1000).

@@ -159,11 +159,20 @@ class TriMesh:
         n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
         return n / np.linalg.norm(n, axis=1, keepdims=True)
 
+    def set_vertex_normal_weighting(self, weight_type: str):
+        """``"area"`` (default) or ``"uniform"`` weights of the face normals in ``vertex_normals``."""
+        if weight_type not in ("area", "uniform"):
+            raise ValueError(f"weight_type: expected 'area' or 'uniform', got {weight_type!r}")
+        self._normal_weighting = weight_type
+
     @property
     def vertex_normals(self) -> np.ndarray:
-        """(n, 3) area-weighted unit vertex normals."""
+        """(n, 3) unit vertex normals: the sum of the adjacent faces' normals, weighted by area
+        (default) or uniformly (``set_vertex_normal_weighting("uniform")``)."""
         V, F = self._vertlist, self._facelist
         n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+        if getattr(self, "_normal_weighting", "area") == "uniform":
+            n = n / np.linalg.norm(n, axis=1, keepdims=True)
         out = np.zeros_like(V)
         for c in range(3):
             np.add.at(out, F[:, c], n)
