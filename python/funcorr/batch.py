@@ -195,8 +195,10 @@ def match_pairs(
     ``shapes``: a dict name → shape (path, ``(V, F)``, points or PreparedShape), or a list
     (named by file stem, or by index). Every shape is prepared once with the eigenpairs the
     options need (as :func:`funcorr.match`). ``engine``: ``"local"`` or ``"ray"``; ``n_jobs``:
-    pair jobs at a time (local; default: 2, or the cores); ``threads_per_job``: rayon threads of
+    pair jobs at a time (local; default: one per core); ``threads_per_job``: rayon threads of
     each job (default: the cores divided by ``n_jobs``; on Ray, 1 CPU per task unless given).
+    The local engine sets :func:`funcorr.set_num_threads` to ``threads_per_job`` while it runs
+    and restores the earlier setting afterwards.
     ``data`` and ``match_options``: those of :func:`funcorr.match` (e.g. ``method="fmap"``).
     ``ground_truth``: name → 0-based template points (e.g. ``funcorr.read_vts(...)``) for
     evaluating each pair on them (``symmetric``: name → mirrored template points,
@@ -223,7 +225,7 @@ def match_pairs(
     used = sorted({s for p in pairs for s in p})
     cores = os.cpu_count() or 1
     if engine == "local":
-        jobs = n_jobs or min(2, cores)
+        jobs = n_jobs or cores
         threads = threads_per_job or max(1, cores // jobs)
         results = _run_local(named, used, pairs, k, laplacian, data, options, ground_truth, symmetric, geodesics, jobs, threads, callback)
     else:
