@@ -211,6 +211,23 @@ pub(crate) fn match_options(o: &mut Opts, rich: bool) -> PyResult<(MatchOptions,
             &[("none", Refine::None), ("icp", Refine::Icp), ("zoomout", Refine::Zoomout)],
         )?),
     };
+    // The L1 samples and the stopping rule on the point map (issue 12), as the CLI's
+    // --l1-samples, --map-check-every, --map-tolerance.
+    completion.l1_sampling = funcorr::completion::L1Sampling::farthest(o.usize("l1_samples")?.unwrap_or(0));
+    let refine_k = o.usize("refine_k")?.unwrap_or(MatchOptions::default().refine_k);
+    let every = o.usize("map_check_every")?.unwrap_or(0);
+    let tolerance = o.f64("map_tolerance")?.unwrap_or(0.005);
+    if every > 0 {
+        if !(0.0..=1.0).contains(&tolerance) {
+            return Err(value_error("map_tolerance", format!("must be in [0, 1], got {tolerance}")));
+        }
+        let refined = match refine {
+            Some(r) => r != Refine::None,
+            None => base.refine != funcorr::matching::Refine::None,
+        };
+        let k = if refined { refine_k } else { 0 };
+        completion.settled = Some(funcorr::completion::SettledMap { every, tolerance, k });
+    }
     let zoomout_to = o.usize("zoomout_to")?;
     let zoomout_step = o.usize("zoomout_step")?;
     let candidates = o.sizes("candidates")?;
@@ -261,6 +278,12 @@ pub(crate) fn match_options(o: &mut Opts, rich: bool) -> PyResult<(MatchOptions,
         }
         a.refine.samples = o.usize("zoomout_samples")?.unwrap_or(a.refine.samples);
         a.polish = o.usize("polish")?.unwrap_or(a.polish);
+        // Large pairs: --near-above, --near-cells.
+        a.near.above_pairs = o.usize("near_above")?.map_or(a.near.above_pairs, |v| v as u64);
+        a.near.cells = o.usize("near_cells")?.unwrap_or(a.near.cells);
+        if a.near.cells == 0 {
+            return Err(value_error("near_cells", "must be at least 1"));
+        }
         for (key, v) in [
             ("w_descriptors", a.fit.weights.descriptors),
             ("w_laplacian", a.fit.weights.laplacian),
@@ -293,7 +316,7 @@ pub(crate) fn match_options(o: &mut Opts, rich: bool) -> PyResult<(MatchOptions,
         init_k: o.usize("init_k")?.unwrap_or(defaults.init_k),
         extraction,
         refine: refine.unwrap_or(base.refine),
-        refine_k: o.usize("refine_k")?.unwrap_or(defaults.refine_k),
+        refine_k,
         icp: funcorr::pointwise::IcpOptions {
             max_iterations: o.usize("icp_iterations")?.unwrap_or(defaults.icp.max_iterations),
         },

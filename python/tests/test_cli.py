@@ -41,6 +41,18 @@ def test_default_match_equals_the_cli(cli, tmp_path, default_match):
             dict(method="completion", data="wks:30", kprime=40, k=10, max_iterations=5, mu3=0.5, init="svd",
                  refine="zoomout", zoomout_to=60, zoomout_step=10),
         ),
+        (
+            # Issue 12's options: the L1 term on samples, the stopping rule on the map, and the
+            # large-pair searches forced on.
+            ["--method", "completion", "--data", "wks:30", "--kprime", "40", "-k", "10", "--max-iterations", "30",
+             "--l1-samples", "500", "--map-check-every", "5", "--map-tolerance", "0.01"],
+            dict(method="completion", data="wks:30", kprime=40, k=10, max_iterations=30, l1_samples=500,
+                 map_check_every=5, map_tolerance=0.01),
+        ),
+        (
+            ["--near-above", "0", "--near-cells", "8", "--zoomout-samples", "1000"],
+            dict(near_above=0, near_cells=8, zoomout_samples=1000),
+        ),
     ],
 )
 def test_options_match_the_cli_flags(cli, tmp_path, flags, options):
