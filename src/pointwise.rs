@@ -69,6 +69,23 @@ pub fn nearest_neighbors_near(
     coarse: &CoarseMap,
     cells: usize,
 ) -> Result<Vec<usize>> {
+    let all: Vec<usize> = (0..query.nrows()).collect();
+    nearest_neighbors_near_rows(reference, query, coarse, cells, &all)
+}
+
+/// [`nearest_neighbors_near`] for the query rows `rows` only (vertex ids of X, any order,
+/// repeats allowed): returns the image of each, in the order of `rows`. Costs O(|rows| · cells ·
+/// m / #cells · d) plus the cells of Y; used where a point map is needed on part of X only (the
+/// probes of large pairs score a candidate around samples, [`crate::refine::metric_distortion_around`]).
+///
+/// Errors: those of [`nearest_neighbors_near`], a row id ≥ n.
+pub fn nearest_neighbors_near_rows(
+    reference: MatRef<f64>,
+    query: MatRef<f64>,
+    coarse: &CoarseMap,
+    cells: usize,
+    rows: &[usize],
+) -> Result<Vec<usize>> {
     let (n, m) = (query.nrows(), reference.nrows());
     if coarse.x.len() != n || coarse.y.len() != m {
         return Err(Error::invalid(
@@ -93,6 +110,9 @@ pub fn nearest_neighbors_near(
     if coarse.samples.iter().any(|&v| v >= n) || coarse.images.iter().chain(coarse.y_cells).any(|&v| v >= m) {
         return Err(Error::invalid("coarse map", "a vertex id is out of range"));
     }
+    if rows.iter().any(|&i| i >= n) {
+        return Err(Error::invalid("rows", format!("a query row id is ≥ n = {n}")));
+    }
     if query.ncols() != reference.ncols() {
         return Err(Error::invalid(
             "embedding",
@@ -103,6 +123,7 @@ pub fn nearest_neighbors_near(
     let points = |ids: &[usize], p: &[[f64; 3]]| ids.iter().map(|&v| p[v]).collect::<Vec<[f64; 3]>>();
     let centres = points(coarse.y_cells, coarse.y);
     // Members of every cell of X (around a sample) and of Y (around a centre), ascending.
+    // (Positions in `rows` for X.)
     let members = |owner: Vec<usize>, count: usize| {
         let mut lists = vec![Vec::new(); count];
         for (v, o) in owner.into_iter().enumerate() {
@@ -110,7 +131,10 @@ pub fn nearest_neighbors_near(
         }
         lists
     };
-    let x_cells = members(crate::spatial::nearest3(&points(coarse.samples, coarse.x), coarse.x), coarse.samples.len());
+    let x_cells = members(
+        crate::spatial::nearest3(&points(coarse.samples, coarse.x), &points(rows, coarse.x)),
+        coarse.samples.len(),
+    );
     let y_members = members(crate::spatial::nearest3(&centres, coarse.y), centres.len());
     let near = crate::spatial::nearest_n3(&centres, &points(coarse.images, coarse.y), cells.min(centres.len()));
     let results: Vec<Vec<(usize, usize)>> = x_cells
@@ -123,12 +147,12 @@ pub fn nearest_neighbors_near(
             let mut candidates: Vec<usize> = near_cells.iter().flat_map(|&c| y_members[c].iter().copied()).collect();
             candidates.sort_unstable();
             let r = Mat::from_fn(candidates.len(), d, |t, c| reference[(candidates[t], c)]);
-            let q = Mat::from_fn(queries.len(), d, |t, c| query[(queries[t], c)]);
+            let q = Mat::from_fn(queries.len(), d, |t, c| query[(rows[queries[t]], c)]);
             let best = crate::spatial::nearest_rows(r.as_ref(), q.as_ref())?;
             Ok(queries.iter().zip(best).map(|(&i, t)| (i, candidates[t])).collect())
         })
         .collect::<Result<_>>()?;
-    let mut map = vec![0usize; n];
+    let mut map = vec![0usize; rows.len()];
     for (i, j) in results.into_iter().flatten() {
         map[i] = j;
     }
@@ -327,6 +351,16 @@ mod tests {
         // A point of the reference set finds itself.
         let self_map = nearest_neighbors(r.as_ref(), r.as_ref()).unwrap();
         assert!(self_map.iter().enumerate().all(|(i, &j)| i == j));
+        // Several reference chunks and query blocks, sizes not multiples of the lanes.
+        let (m, n, d) = (4_501, 263, 5);
+        let r = Mat::from_fn(m, d, |_, _| rng.sample());
+        let q = Mat::from_fn(n, d, |_, _| rng.sample());
+        let got = nearest_neighbors(r.as_ref(), q.as_ref()).unwrap();
+        for i in 0..n {
+            let dist = |j: usize| (0..d).map(|c| (q[(i, c)] - r[(j, c)]).powi(2)).sum::<f64>();
+            let want = (0..m).min_by(|&a, &b| dist(a).total_cmp(&dist(b))).unwrap();
+            assert_eq!(got[i], want, "query {i}");
+        }
     }
 
     #[test]
@@ -503,6 +537,11 @@ mod tests {
         let agree = |a: &[usize], b: &[usize]| a.iter().zip(b).filter(|(p, q)| p == q).count();
         assert_eq!(agree(&near, &exact), n);
         assert!(agree(&exact, &truth) < n, "the noise makes the exact map differ from the truth somewhere");
+        // Some rows only, in any order and with repeats: the same images.
+        let rows = [n - 1, 0, 17, 17, n / 2];
+        let part = nearest_neighbors_near_rows(reference.as_ref(), query.as_ref(), &coarse, 8, &rows).unwrap();
+        assert_eq!(part, rows.iter().map(|&i| exact[i]).collect::<Vec<_>>());
+        assert!(nearest_neighbors_near_rows(reference.as_ref(), query.as_ref(), &coarse, 8, &[n]).is_err());
         // A wrong coarse map (every sample sent to the image of another) confines the search
         // to the wrong places.
         let wrong: Vec<usize> = (0..sx.len()).map(|s| images[(s + sx.len() / 2) % sx.len()]).collect();

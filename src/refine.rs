@@ -178,11 +178,26 @@ pub fn map_of_pullback_near(
     y_cells: &[usize],
     near: &Near,
 ) -> Result<Vec<usize>> {
+    let all: Vec<usize> = (0..phi.nrows()).collect();
+    map_of_pullback_near_at(phi, psi, c_yx, sx, y_cells, near, &all)
+}
+
+/// [`map_of_pullback_near`] for the vertices `rows` of X only: the image of each (in the order
+/// of `rows`). Errors as [`map_of_pullback_near`] and for a vertex id ≥ n.
+pub fn map_of_pullback_near_at(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    c_yx: MatRef<f64>,
+    sx: &[usize],
+    y_cells: &[usize],
+    near: &Near,
+    rows: &[usize],
+) -> Result<Vec<usize>> {
     let images = map_of_pullback(phi, psi, c_yx, Some(sx))?;
     let (kx, ky) = (c_yx.nrows(), c_yx.ncols());
     let reference = mul(psi.subcols(0, ky), c_yx.transpose());
     let coarse = CoarseMap { x: near.x, y: near.y, samples: sx, images: &images, y_cells };
-    nearest_neighbors_near(reference.as_ref(), phi.subcols(0, kx), &coarse, near.cells)
+    crate::pointwise::nearest_neighbors_near_rows(reference.as_ref(), phi.subcols(0, kx), &coarse, near.cells, rows)
 }
 
 /// Options of [`zoomout`] (the same as [`crate::pointwise::zoomout`]'s).
@@ -587,6 +602,31 @@ pub fn orientation_agreement(
     y_normals: &[[f64; 3]],
     map_xy: &[usize],
 ) -> Result<f64> {
+    orientation_on_faces(x, y_vertices, y_normals, map_xy, None)
+}
+
+/// [`orientation_agreement`] estimated from the triangles of X incident to the vertices
+/// `centres`; `map_xy` needs to be right only on their corners ([`incident_vertices`]). Errors
+/// as [`orientation_agreement`], and for a centre ≥ n.
+pub fn orientation_agreement_around(
+    x: &TriMesh,
+    y_vertices: &[[f64; 3]],
+    y_normals: &[[f64; 3]],
+    map_xy: &[usize],
+    centres: &[usize],
+) -> Result<f64> {
+    let mark = centre_marks(x.n_vertices(), centres)?;
+    orientation_on_faces(x, y_vertices, y_normals, map_xy, Some(&mark))
+}
+
+/// [`orientation_agreement`] over every triangle, or over those with a corner marked in `around`.
+fn orientation_on_faces(
+    x: &TriMesh,
+    y_vertices: &[[f64; 3]],
+    y_normals: &[[f64; 3]],
+    map_xy: &[usize],
+    around: Option<&[bool]>,
+) -> Result<f64> {
     let (n, m) = (x.n_vertices(), y_vertices.len());
     if map_xy.len() != n || y_normals.len() != m {
         return Err(Error::invalid(
@@ -604,6 +644,9 @@ pub fn orientation_agreement(
     let areas = x.face_areas();
     let (mut sum, mut total) = (0.0, 0.0);
     for (f, tri) in x.faces().iter().enumerate() {
+        if around.is_some_and(|mark| !tri.iter().any(|&v| mark[v as usize])) {
+            continue;
+        }
         let [a, b, c] = tri.map(|v| map_xy[v as usize]);
         total += areas[f];
         if a == b || b == c || a == c {
@@ -631,6 +674,59 @@ pub fn orientation_agreement(
 /// matched to the wrong one) or collapses (neighbours sent to one vertex) scores higher. The
 /// chord lengths stand in for geodesic ones, exact enough at edge scale.
 pub fn metric_distortion(x: &TriMesh, y_positions: &[[f64; 3]], scale: f64, map_xy: &[usize]) -> Result<f64> {
+    distortion_on_edges(x, y_positions, scale, map_xy, None)
+}
+
+/// [`metric_distortion`] estimated from the edges of X incident to the vertices `centres` (e.g.
+/// farthest-point samples): the same ratio, summed over those edges only. `map_xy` (length n)
+/// needs to be right only on their endpoints ([`incident_vertices`]); its other entries are
+/// read as vertex ids of Y but do not enter the result. Errors as [`metric_distortion`], and for
+/// a centre ≥ n.
+pub fn metric_distortion_around(
+    x: &TriMesh,
+    y_positions: &[[f64; 3]],
+    scale: f64,
+    map_xy: &[usize],
+    centres: &[usize],
+) -> Result<f64> {
+    let mark = centre_marks(x.n_vertices(), centres)?;
+    distortion_on_edges(x, y_positions, scale, map_xy, Some(&mark))
+}
+
+/// The vertices of X on the triangles incident to `centres` (the centres and their one-ring
+/// neighbours), ascending: where [`metric_distortion_around`] and
+/// [`orientation_agreement_around`] read the map. Ids ≥ n are ignored.
+pub fn incident_vertices(x: &TriMesh, centres: &[usize]) -> Vec<usize> {
+    let n = x.n_vertices();
+    let mut mark = vec![false; n];
+    centres.iter().filter(|&&v| v < n).for_each(|&v| mark[v] = true);
+    let mut keep = mark.clone();
+    for tri in x.faces() {
+        if tri.iter().any(|&v| mark[v as usize]) {
+            tri.iter().for_each(|&v| keep[v as usize] = true);
+        }
+    }
+    (0..n).filter(|&v| keep[v]).collect()
+}
+
+/// A mask of length n, true at the `centres`.
+fn centre_marks(n: usize, centres: &[usize]) -> Result<Vec<bool>> {
+    if centres.iter().any(|&v| v >= n) {
+        return Err(Error::invalid("centres", format!("a vertex id is ≥ n = {n}")));
+    }
+    let mut mark = vec![false; n];
+    centres.iter().for_each(|&v| mark[v] = true);
+    Ok(mark)
+}
+
+/// [`metric_distortion`] over every edge, or over the edges with an end marked in `around`.
+fn distortion_on_edges(
+    x: &TriMesh,
+    y_positions: &[[f64; 3]],
+    scale: f64,
+    map_xy: &[usize],
+    around: Option<&[bool]>,
+) -> Result<f64> {
     let (n, m) = (x.n_vertices(), y_positions.len());
     if map_xy.len() != n || map_xy.iter().any(|&j| j >= m) {
         return Err(Error::invalid("map", format!("need {n} entries < m = {m}")));
@@ -644,6 +740,9 @@ pub fn metric_distortion(x: &TriMesh, y_positions: &[[f64; 3]], scale: f64, map_
     let (mut num, mut den) = (0.0, 0.0);
     for e in x.edges() {
         let (i, j) = (e[0] as usize, e[1] as usize);
+        if around.is_some_and(|mark| !mark[i] && !mark[j]) {
+            continue;
+        }
         let dx = scale * dist(xv[i], xv[j]);
         num += (dist(y_positions[map_xy[i]], y_positions[map_xy[j]]) - dx).abs();
         den += dx;
@@ -762,6 +861,40 @@ mod tests {
         let nm: Vec<[f64; 3]> = normals.iter().map(|p| [-p[0], p[1], p[2]]).collect();
         let s = orientation_agreement(&x, &ym, &nm, &map).unwrap();
         assert!(s < -0.99, "mirrored agreement {s}");
+    }
+
+    #[test]
+    fn distortion_and_orientation_around_samples_estimate_the_whole() {
+        let x = bumpy_sphere(4);
+        let n = x.n_vertices();
+        let mass = vec![1.0; n];
+        // A map that is right on one half and sends the other half to one vertex.
+        let map: Vec<usize> = (0..n).map(|i| if x.vertices()[i][0] > 0.0 { i } else { 0 }).collect();
+        let normals = x.vertex_normals();
+        let (whole_d, whole_o) = (
+            metric_distortion(&x, x.vertices(), 1.0, &map).unwrap(),
+            orientation_agreement(&x, x.vertices(), &normals, &map).unwrap(),
+        );
+        // Around every vertex: exactly the whole.
+        let all: Vec<usize> = (0..n).collect();
+        assert_eq!(incident_vertices(&x, &all), all);
+        assert!((metric_distortion_around(&x, x.vertices(), 1.0, &map, &all).unwrap() - whole_d).abs() < 1e-14);
+        assert!(
+            (orientation_agreement_around(&x, x.vertices(), &normals, &map, &all).unwrap() - whole_o).abs() < 1e-14
+        );
+        // Around 60 farthest-point samples, with the map known on their one-rings only: close.
+        let centres = farthest_point_samples(x.vertices(), &mass, 60).unwrap().vertices;
+        let patch = incident_vertices(&x, &centres);
+        assert!(patch.len() > centres.len() && patch.len() < n / 2, "{} of {n}", patch.len());
+        let mut partial = vec![0usize; n];
+        patch.iter().for_each(|&v| partial[v] = map[v]);
+        let d = metric_distortion_around(&x, x.vertices(), 1.0, &partial, &centres).unwrap();
+        let o = orientation_agreement_around(&x, x.vertices(), &normals, &partial, &centres).unwrap();
+        assert!((d - whole_d).abs() < 0.25 * whole_d, "{d} vs {whole_d}");
+        assert!((o - whole_o).abs() < 0.25, "{o} vs {whole_o}");
+        assert!(whole_d > 0.1 && metric_distortion_around(&x, x.vertices(), 1.0, &all, &centres).unwrap() == 0.0);
+        assert!(metric_distortion_around(&x, x.vertices(), 1.0, &map, &[n]).is_err());
+        assert!(orientation_agreement_around(&x, x.vertices(), &normals, &map, &[n]).is_err());
     }
 
     #[test]

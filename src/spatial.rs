@@ -257,6 +257,9 @@ const REFERENCE_CHUNK: usize = 2048;
 /// Safety factor on the rounding-error bound of the single-precision screen of [`nearest_rows`].
 const SCREEN_SAFETY: f64 = 4.0;
 
+/// Independent lanes of the screen's vectorized test (one AVX-512 register of f64).
+const LANES: usize = 8;
+
 /// argmin_j (‖r_j‖² − 2 q·r_j) (`euclidean`) or argmax_j q·r_j for every query row.
 ///
 /// Two passes, exact in double precision. *Screen:* the products q·r_j in single precision
@@ -319,17 +322,37 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
                     1.0f32,
                     Par::Seq,
                 );
-                let dd = dots.as_ref();
+                // Pass 1 (branch-free, vectorized): the smallest upper bound of every query over
+                // the chunk.
                 for j in 0..w {
-                    let col = dd.col(j);
+                    let col = &dots.col_as_slice(j)[..len];
                     let (rn, rl) = (ref_norm[c0 + j], ref_len[c0 + j]);
+                    for ((hi, &dot), &sc) in best_hi.iter_mut().zip(col).zip(&scale) {
+                        *hi = hi.min(rn - 2.0 * dot as f64 + sc * rl);
+                    }
+                }
+                // Pass 2: the candidates, lower bound ≤ best upper bound. A column is scanned
+                // one query at a time only when some query keeps it (a vectorized test first).
+                for j in 0..w {
+                    let col = &dots.col_as_slice(j)[..len];
+                    let (rn, rl) = (ref_norm[c0 + j], ref_len[c0 + j]);
+                    let lo = |i: usize| rn - 2.0 * col[i] as f64 - scale[i] * rl;
+                    let mut margin = [f64::NEG_INFINITY; LANES];
+                    let full = len - len % LANES;
+                    for i0 in (0..full).step_by(LANES) {
+                        for l in 0..LANES {
+                            margin[l] = margin[l].max(best_hi[i0 + l] - lo(i0 + l));
+                        }
+                    }
+                    let tail = (full..len).map(|i| best_hi[i] - lo(i)).fold(f64::NEG_INFINITY, f64::max);
+                    if margin.iter().fold(tail, |a, &b| a.max(b)) < 0.0 {
+                        continue;
+                    }
                     for i in 0..len {
-                        let dist = rn - 2.0 * col[i] as f64;
-                        let bound = scale[i] * rl;
-                        if dist - bound <= best_hi[i] {
-                            best_hi[i] = best_hi[i].min(dist + bound);
+                        let l = lo(i);
+                        if l <= best_hi[i] {
                             let list = &mut cands[i];
-                            list.push((dist - bound, c0 + j));
+                            list.push((l, c0 + j));
                             if list.len() >= 64 {
                                 let hi = best_hi[i];
                                 list.retain(|c| c.0 <= hi);

@@ -85,8 +85,10 @@ pub struct AxiomaticPipeline {
 
 /// The searches of the pipeline on large pairs. Above `above_pairs` vertex pairs n · m (with
 /// positions on both shapes and samples on): the ZoomOut iterations (probes and final) match
-/// each sample of X near its previous image only ([`crate::refine::zoomout_fmap_near`]), and
-/// every point map of all vertices (the probes' maps, the final X → Y and Y → X maps) matches
+/// each sample of X near its previous image only ([`crate::refine::zoomout_fmap_near`]); a
+/// probe's metric distortion and orientation are measured on the edges and triangles incident to
+/// its samples ([`crate::refine::metric_distortion_around`]), so its map is needed on their
+/// one-rings only; and every point map (those one-rings, the final X → Y and Y → X maps) matches
 /// each vertex among the vertices of the other shape in the `cells` Voronoi cells nearest to the
 /// image of its own sample ([`crate::pointwise::nearest_neighbors_near`]). Below it, every
 /// search is exact. The exact searches cost O(n · m · k): 2·10¹³ flops for the 330-dimensional
@@ -281,6 +283,11 @@ pub fn axiomatic_pipeline(
     let scale = (y.basis.mass.iter().sum::<f64>() / x.basis.mass.iter().sum::<f64>()).sqrt();
     // The candidates are probed independently, in parallel.
     let (tx, py, ny) = (x.triangles(), y.positions(), y.normals());
+    // Large pairs score a probe around its samples: the map is needed on their one-rings only.
+    let probe_patch = match (&probe_refs, tx) {
+        (Some(_), Some(tx)) => Some(refine::incident_vertices(tx, &probe_samples.vertices)),
+        _ => None,
+    };
     let probed: Vec<(Candidate, Option<Mat<f64>>)> = fits
         .par_iter()
         .zip(p.candidates.par_iter())
@@ -293,15 +300,32 @@ pub fn axiomatic_pipeline(
                     (Some(near), Some(sy)) => {
                         let ys = &sy.vertices;
                         let c = refine::zoomout_fmap_near(phi, psi, &probe_samples, ys, c.as_ref(), &o, near)?;
-                        let (xs, ys) = (&probe_samples.vertices, &sy.vertices);
-                        let map = refine::map_of_pullback_near(phi, psi, c.as_ref(), xs, ys, near)?;
+                        let xs = &probe_samples.vertices;
+                        let map = match &probe_patch {
+                            // The images of the samples' one-rings; other entries stay 0 (unread).
+                            Some(patch) => {
+                                let images =
+                                    refine::map_of_pullback_near_at(phi, psi, c.as_ref(), xs, ys, near, patch)?;
+                                let mut map = vec![0usize; phi.nrows()];
+                                patch.iter().zip(images).for_each(|(&v, j)| map[v] = j);
+                                map
+                            }
+                            None => refine::map_of_pullback_near(phi, psi, c.as_ref(), xs, ys, near)?,
+                        };
                         Some((c, map))
                     }
                     _ => Some(refine::zoomout(phi, psi, &probe_samples, c.as_ref(), &o)?),
                 }
             };
-            let (distortion, orientation) = match (&probe, tx, py, ny) {
-                (Some((_, m)), Some(tx), Some(py), Some(ny)) => {
+            let (distortion, orientation) = match (&probe, tx, py, ny, &probe_patch) {
+                (Some((_, m)), Some(tx), Some(py), Some(ny), Some(_)) => {
+                    let centres = &probe_samples.vertices;
+                    (
+                        refine::metric_distortion_around(tx, py, scale, m, centres)?,
+                        refine::orientation_agreement_around(tx, py, ny, m, centres)?,
+                    )
+                }
+                (Some((_, m)), Some(tx), Some(py), Some(ny), None) => {
                     (refine::metric_distortion(tx, py, scale, m)?, refine::orientation_agreement(tx, py, ny, m)?)
                 }
                 _ => (f64::NAN, f64::NAN),
