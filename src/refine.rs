@@ -166,9 +166,35 @@ impl<'a> Near<'a> {
     }
 }
 
+/// The nearest reference row (rows of Y, `reference` m × d) of every sample `sx` of X (rows of
+/// `query`, n × d), coarse to fine: each sample is first matched among the rows `y_cells` of Y
+/// only, then searched among the vertices of Y in the `near.cells` cells around that image
+/// ([`crate::pointwise::nearest_neighbors_near_rows`], each sample its own cell).
+/// O(#sx · (#y_cells + cells · m / #y_cells) · d) instead of the exact O(#sx · m · d); equal to
+/// the exact search whenever a sample's nearest row lies within those cells of its coarse image.
+fn sample_images_near(
+    reference: MatRef<f64>,
+    query: MatRef<f64>,
+    sx: &[usize],
+    y_cells: &[usize],
+    near: &Near,
+) -> Result<Vec<usize>> {
+    let (n, m) = (query.nrows(), reference.nrows());
+    if sx.iter().any(|&i| i >= n) || y_cells.iter().any(|&j| j >= m) {
+        return Err(Error::invalid("samples", "a vertex id is out of range"));
+    }
+    let d = query.ncols();
+    let coarse_refs = Mat::from_fn(y_cells.len(), d, |t, a| reference[(y_cells[t], a)]);
+    let queries = Mat::from_fn(sx.len(), d, |s, a| query[(sx[s], a)]);
+    let coarse: Vec<usize> =
+        nearest_neighbors(coarse_refs.as_ref(), queries.as_ref())?.into_iter().map(|t| y_cells[t]).collect();
+    let map = CoarseMap { x: near.x, y: near.y, samples: sx, images: &coarse, y_cells };
+    crate::pointwise::nearest_neighbors_near_rows(reference, query, &map, near.cells, sx)
+}
+
 /// [`map_of_pullback`] of every vertex of X searched near the map of the samples `sx` of X
-/// (exact, each sample against every vertex of Y), among the cells of Y around the vertices
-/// `y_cells` ([`crate::pointwise::nearest_neighbors_near`]). Errors as [`map_of_pullback`] and
+/// (found coarse to fine: among the vertices `y_cells` of Y, then near that image), among the
+/// cells of Y around `y_cells` ([`crate::pointwise::nearest_neighbors_near`]). Errors as [`map_of_pullback`] and
 /// [`crate::pointwise::nearest_neighbors_near`].
 pub fn map_of_pullback_near(
     phi: MatRef<f64>,
@@ -193,11 +219,18 @@ pub fn map_of_pullback_near_at(
     near: &Near,
     rows: &[usize],
 ) -> Result<Vec<usize>> {
-    let images = map_of_pullback(phi, psi, c_yx, Some(sx))?;
     let (kx, ky) = (c_yx.nrows(), c_yx.ncols());
+    if kx == 0 || ky == 0 || kx > phi.ncols() || ky > psi.ncols() {
+        return Err(Error::invalid(
+            "C",
+            format!("a {kx}×{ky} map does not fit bases with {} and {} columns", phi.ncols(), psi.ncols()),
+        ));
+    }
     let reference = mul(psi.subcols(0, ky), c_yx.transpose());
+    let query = phi.subcols(0, kx);
+    let images = sample_images_near(reference.as_ref(), query, sx, y_cells, near)?;
     let coarse = CoarseMap { x: near.x, y: near.y, samples: sx, images: &images, y_cells };
-    crate::pointwise::nearest_neighbors_near_rows(reference.as_ref(), phi.subcols(0, kx), &coarse, near.cells, rows)
+    crate::pointwise::nearest_neighbors_near_rows(reference.as_ref(), query, &coarse, near.cells, rows)
 }
 
 /// Options of [`zoomout`] (the same as [`crate::pointwise::zoomout`]'s).
@@ -268,8 +301,9 @@ fn check_zoomout(phi: MatRef<f64>, psi: MatRef<f64>, c0: MatRef<f64>, opts: &Zoo
     }
 }
 
-/// [`zoomout_fmap`] for shapes of 10⁵–10⁶ vertices: after the first iteration (exact), the map
-/// of every sample of X is searched near its previous image only, among the vertices of Y in
+/// [`zoomout_fmap`] for shapes of 10⁵–10⁶ vertices: in the first iteration every sample of X is
+/// matched coarse to fine (among the vertices `y_cells` of Y, then near that image), after it
+/// near its previous image only, among the vertices of Y in
 /// the `near.cells` Voronoi cells (around the vertices `y_cells` of Y) nearest to that image
 /// ([`crate::pointwise::nearest_neighbors_near`] with each sample its own cell):
 /// O(#samples · cells · m / #y_cells · k) per iteration instead of O(#samples · m · k).
@@ -292,11 +326,11 @@ pub fn zoomout_fmap_near(
     let previous = std::cell::RefCell::new(None::<Vec<usize>>);
     zoomout_loop(phi, psi, samples, c0.to_owned(), opts, |c| {
         let mut prev = previous.borrow_mut();
+        let (kx, ky) = (c.nrows(), c.ncols());
+        let reference = mul(psi.subcols(0, ky), c.transpose());
         let map = match prev.as_ref() {
-            None => map_of_pullback(phi, psi, c, Some(&samples.vertices))?,
+            None => sample_images_near(reference.as_ref(), phi.subcols(0, kx), &samples.vertices, y_cells, near)?,
             Some(images) => {
-                let (kx, ky) = (c.nrows(), c.ncols());
-                let reference = mul(psi.subcols(0, ky), c.transpose());
                 let query = Mat::from_fn(samples.len(), kx, |s, a| phi[(samples.vertices[s], a)]);
                 let coarse = CoarseMap { x: &positions, y: near.y, samples: &own, images, y_cells };
                 nearest_neighbors_near(reference.as_ref(), query.as_ref(), &coarse, near.cells)?
@@ -455,8 +489,8 @@ fn bijective_embeddings(
     (reference, query)
 }
 
-/// [`bijective_map`] of every vertex of X searched near the map of the samples `sx` (exact,
-/// against every vertex of Y), among the cells of Y around `y_cells`.
+/// [`bijective_map`] of every vertex of X searched near the map of the samples `sx` (found coarse
+/// to fine, as in [`map_of_pullback_near`]), among the cells of Y around `y_cells`.
 #[allow(clippy::too_many_arguments)]
 fn bijective_map_near(
     phi: MatRef<f64>,
@@ -468,9 +502,9 @@ fn bijective_map_near(
     y_cells: &[usize],
     near: &Near,
 ) -> Result<Vec<usize>> {
-    let images = bijective_map(phi, psi, c_yx, c_xy, w, Some(sx), None)?;
     let (all_x, all_y): (Vec<usize>, Vec<usize>) = ((0..phi.nrows()).collect(), (0..psi.nrows()).collect());
     let (reference, query) = bijective_embeddings(phi, psi, c_yx, c_xy, w, &all_x, &all_y);
+    let images = sample_images_near(reference.as_ref(), query.as_ref(), sx, y_cells, near)?;
     let coarse = CoarseMap { x: near.x, y: near.y, samples: sx, images: &images, y_cells };
     nearest_neighbors_near(reference.as_ref(), query.as_ref(), &coarse, near.cells)
 }
