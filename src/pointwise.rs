@@ -73,6 +73,10 @@ pub fn nearest_neighbors_near(
     nearest_neighbors_near_rows(reference, query, coarse, cells, &all)
 }
 
+/// Below this many query rows per cell of X, [`nearest_neighbors_near_rows`] copies the reference
+/// rows into cell order before gathering candidates.
+const SORT_BELOW_QUERIES_PER_CELL: usize = 8;
+
 /// [`nearest_neighbors_near`] for the query rows `rows` only (vertex ids of X, any order,
 /// repeats allowed): returns the image of each, in the order of `rows`. Costs O(|rows| · cells ·
 /// m / #cells · d) plus the cells of Y; used where a point map is needed on part of X only (the
@@ -137,6 +141,16 @@ pub fn nearest_neighbors_near_rows(
     );
     let y_members = members(crate::spatial::nearest3(&centres, coarse.y), centres.len());
     let near = crate::spatial::nearest_n3(&centres, &points(coarse.images, coarse.y), cells.min(centres.len()));
+    // With few queries per cell (e.g. samples searched alone) gathering the candidate rows costs
+    // more than the search: one random read per entry. Then the rows of Y are first copied in
+    // cell order (one pass over m × d), so that each gather reads `cells` contiguous runs.
+    let busy = x_cells.iter().filter(|q| !q.is_empty()).count().max(1);
+    let by_cell = (rows.len() < SORT_BELOW_QUERIES_PER_CELL * busy).then(|| {
+        let order: Vec<usize> = y_members.concat();
+        let mut position = vec![0usize; m];
+        order.iter().enumerate().for_each(|(t, &j)| position[j] = t);
+        (Mat::from_fn(m, d, |t, c| reference[(order[t], c)]), position)
+    });
     let results: Vec<Vec<(usize, usize)>> = x_cells
         .par_iter()
         .zip(near.par_iter())
@@ -144,9 +158,15 @@ pub fn nearest_neighbors_near_rows(
             if queries.is_empty() {
                 return Ok(Vec::new());
             }
+            // Ascending vertex ids of Y (ties go to the smallest id, as in the exact search).
             let mut candidates: Vec<usize> = near_cells.iter().flat_map(|&c| y_members[c].iter().copied()).collect();
             candidates.sort_unstable();
-            let r = Mat::from_fn(candidates.len(), d, |t, c| reference[(candidates[t], c)]);
+            let r = match &by_cell {
+                Some((sorted, position)) => {
+                    Mat::from_fn(candidates.len(), d, |t, c| sorted[(position[candidates[t]], c)])
+                }
+                None => Mat::from_fn(candidates.len(), d, |t, c| reference[(candidates[t], c)]),
+            };
             let q = Mat::from_fn(queries.len(), d, |t, c| query[(rows[queries[t]], c)]);
             let best = crate::spatial::nearest_rows(r.as_ref(), q.as_ref())?;
             Ok(queries.iter().zip(best).map(|(&i, t)| (i, candidates[t])).collect())
