@@ -25,7 +25,7 @@
 //! [`Precision::F32`], U, V and P_U, P_V (or Ψ, Φ) are rounded to f32 once per call; each block
 //! T̂_r = U_r Vᵀ is formed by the f32 GEMM; √(t̂² + ξ), the value and s = w t̂ / √(t̂² + ξ) are
 //! computed in f64 from the f32 t̂, and s is rounded back to f32. The products of S sum in f32
-//! over at most c = [`F32_CHUNK`] = 512 columns (S·P_V, S Φ: the chunks are added in f64) or over
+//! over at most c = `F32_CHUNK` = 512 columns (S·P_V, S Φ: the chunks are added in f64) or over
 //! the b rows of one block (Sᵀ·P_U and Ψ_rᵀ (S_r Φ), whose blocks are added in f64; S_r Φ is
 //! rounded to f32 once more before that product). Every sum across blocks is in f64.
 //!
@@ -55,7 +55,10 @@
 //! value ~1e-13 (random bases) and ~1e-10 (faust_r, k' = 350, k = 250, ξ = 1e-2, weighted), of
 //! the gradient ~1e-7, against bounds of ~1e-5 and more. The optimizer's objective changes by
 //! more than that per iteration (~1e-6 relative late in a run), and the f32 kernel's results are
-//! as deterministic (independent of the thread count) as the f64 kernel's.
+//! as deterministic (independent of the thread count) as the f64 kernel's. L-BFGS runs with either
+//! kernel follow the same path for ~20 iterations and then drift apart, as any perturbation does
+//! (measured in BENCHMARKS.md, with final errors within ±0.03 ×100 on two faust_r pairs), which
+//! is why f64 stays the default.
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
