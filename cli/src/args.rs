@@ -265,6 +265,10 @@ pub(crate) struct PipelineArgs {
     /// shape, weighted by their Voronoi areas (0: on every pair of vertices).
     #[arg(long, default_value_t = defaults().completion.l1_sampling.samples())]
     pub(crate) l1_samples: usize,
+    /// Form the products of the completion method's L1 term in f32 (the smoothed |·| and the
+    /// sums across blocks stay in f64; relative differences ~1e-7 in its gradient).
+    #[arg(long)]
+    pub(crate) l1_f32: bool,
     /// Also stop the completion optimizer when its point map has settled: check it every this
     /// many iterations (0: off), on the L1 samples of X or every vertex.
     #[arg(long, default_value_t = defaults().completion.settled.map_or(0, |s| s.every))]

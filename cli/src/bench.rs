@@ -326,6 +326,9 @@ pub(crate) struct ReproBenchArgs {
     /// shape (0: on every pair of vertices).
     #[arg(long, default_value_t = 0)]
     l1_samples: usize,
+    /// Form the products of the completion method's L1 term in f32.
+    #[arg(long)]
+    l1_f32: bool,
     /// Also stop the completion optimizer when its point map has settled: check every this many
     /// iterations (0: off).
     #[arg(long, default_value_t = 0)]
@@ -515,6 +518,8 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
             o.completion.params.mu_comm = a.completion_commutativity;
             o.completion.optimize.max_iterations = a.max_iterations;
             o.completion.l1_sampling = funcorr::completion::L1Sampling::farthest(a.l1_samples);
+            o.completion.params.l1_precision =
+                if a.l1_f32 { funcorr::completion::Precision::F32 } else { funcorr::completion::Precision::F64 };
             // The map the refinement starts from: the leading refine_k block of C.
             o.completion.settled = crate::options::settled_map(a.map_check_every, a.map_tolerance, o.refine_k)?;
             Ok(o)

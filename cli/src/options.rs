@@ -186,6 +186,7 @@ pub(crate) fn pipeline_options(
         ..comp::OptimizeOptions::default()
     };
     completion.l1_sampling = comp::L1Sampling::farthest(p.l1_samples);
+    completion.params.l1_precision = if p.l1_f32 { comp::Precision::F32 } else { comp::Precision::F64 };
     // The map that matters is the one the refinement starts from: that of the leading refine_k
     // block of C (the factors' own map without a refinement).
     let refined = match p.refine {

@@ -62,6 +62,12 @@ impl<'py> Opts<'py> {
             .transpose()
     }
 
+    pub(crate) fn flag(&mut self, key: &str) -> PyResult<Option<bool>> {
+        self.take(key)
+            .map(|v| v.extract::<bool>().map_err(|_| value_error(key, format!("expected a bool, got {v}"))))
+            .transpose()
+    }
+
     pub(crate) fn string(&mut self, key: &str) -> PyResult<Option<String>> {
         self.take(key)
             .map(|v| v.extract::<String>().map_err(|_| value_error(key, format!("expected a string, got {v}"))))
@@ -214,6 +220,10 @@ pub(crate) fn match_options(o: &mut Opts, rich: bool) -> PyResult<(MatchOptions,
     // The L1 samples and the stopping rule on the point map (issue 12), as the CLI's
     // --l1-samples, --map-check-every, --map-tolerance.
     completion.l1_sampling = funcorr::completion::L1Sampling::farthest(o.usize("l1_samples")?.unwrap_or(0));
+    // The CLI's --l1-f32.
+    if o.flag("l1_f32")?.unwrap_or(false) {
+        completion.params.l1_precision = funcorr::completion::Precision::F32;
+    }
     let refine_k = o.usize("refine_k")?.unwrap_or(MatchOptions::default().refine_k);
     let every = o.usize("map_check_every")?.unwrap_or(0);
     let tolerance = o.f64("map_tolerance")?.unwrap_or(0.005);

@@ -50,6 +50,12 @@ def test_default_match_equals_the_cli(cli, tmp_path, default_match):
                  map_check_every=5, map_tolerance=0.01),
         ),
         (
+            # The L1 term's products in f32.
+            ["--method", "completion", "--data", "wks:30", "--kprime", "40", "-k", "10", "--max-iterations", "10",
+             "--l1-f32"],
+            dict(method="completion", data="wks:30", kprime=40, k=10, max_iterations=10, l1_f32=True),
+        ),
+        (
             ["--near-above", "0", "--near-cells", "8", "--zoomout-samples", "1000"],
             dict(near_above=0, near_cells=8, zoomout_samples=1000),
         ),

@@ -258,7 +258,7 @@ impl FullProblem {
                 Some((pl, pr)) => Products::Factored { pu: pl, pv: pr },
                 None => Products::Value,
             };
-            let out = soft_l1(l, r, params.xi, self.l1_weights(), params.block_rows, products);
+            let out = soft_l1(l, r, params.xi, self.l1_weights(), params.block_rows, products, params.l1_precision);
             terms.l1 = params.mu3 * out.value;
             if let Some((z_pr, zt_pl)) = zr.as_mut() {
                 *z_pr += out.s_pv.expect("requested") * faer::Scale(params.mu3);

@@ -60,6 +60,7 @@ pub mod optimize;
 pub mod solve;
 pub mod terms;
 
+pub use l1::Precision;
 pub use objective::{evaluate, value, CompletionParams, Evaluation, LowNorm, Terms};
 // Scaling is defined below.
 pub use lbfgs::{CompletionReport, OptimizeOptions};
@@ -503,7 +504,7 @@ mod tests {
         let b = Mat::<f64>::identity(kp, k);
         let l1 = |p: &Problem| {
             let (phi, psi, w) = p.l1_operands();
-            terms::l1_c(a.as_ref(), b.as_ref(), phi, psi, 1e-2, w, 64)
+            terms::l1_c(a.as_ref(), b.as_ref(), phi, psi, 1e-2, w, 64, l1::Precision::F64)
         };
         let (full, full_grad) = l1(&p);
         let runs = 400;

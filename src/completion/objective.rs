@@ -3,6 +3,7 @@
 use faer::{Mat, MatRef};
 use serde::{Deserialize, Serialize};
 
+use super::l1::Precision;
 use super::terms::{self, TermValue};
 use super::{Form, Problem, Scaling};
 
@@ -43,6 +44,9 @@ pub struct CompletionParams {
     pub low_norm: LowNorm,
     /// Rows of T per block of the L1 computation.
     pub block_rows: usize,
+    /// Arithmetic of the L1 term's products ([`Precision`]; f64 by default).
+    #[serde(default)]
+    pub l1_precision: Precision,
 }
 
 impl Default for CompletionParams {
@@ -58,6 +62,7 @@ impl Default for CompletionParams {
             mu_prior: 0.0,
             low_norm: LowNorm::Euclidean,
             block_rows: 256,
+            l1_precision: Precision::F64,
         }
     }
 }
@@ -239,7 +244,7 @@ pub fn evaluate(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b:
     }
     if params.mu3 != 0.0 {
         let (phi, psi, weights) = problem.l1_operands();
-        let t = terms::l1(a, b, phi, psi, params.xi, weights, params.block_rows);
+        let t = terms::l1(a, b, phi, psi, params.xi, weights, params.block_rows, params.l1_precision);
         terms.l1 = add(params.mu3, t);
     }
     if params.mu4 != 0.0 {
@@ -284,7 +289,7 @@ pub fn gradient_c(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, 
     }
     if params.mu3 != 0.0 {
         let (phi, psi, weights) = problem.l1_operands();
-        let l1 = terms::l1_c(a, b, phi, psi, params.xi, weights, params.block_rows);
+        let l1 = terms::l1_c(a, b, phi, psi, params.xi, weights, params.block_rows, params.l1_precision);
         t.l1 = add(params.mu3, l1);
     }
     t.total = t.sum();
@@ -305,7 +310,8 @@ pub fn value(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b: Ma
     }
     if params.mu3 != 0.0 {
         let (phi, psi, weights) = problem.l1_operands();
-        terms.l1 = params.mu3 * terms::l1_value(a, b, phi, psi, params.xi, weights, params.block_rows);
+        terms.l1 =
+            params.mu3 * terms::l1_value(a, b, phi, psi, params.xi, weights, params.block_rows, params.l1_precision);
     }
     if params.mu4 != 0.0 {
         let (grams, w) = low_norm_setup(problem, params, a.ncols());
@@ -368,6 +374,7 @@ pub(crate) mod tests {
                 mu_prior: 0.05,
                 low_norm,
                 block_rows: 16,
+                ..Default::default()
             };
             let (a, b) = (randn(8, 5, 1), randn(8, 5, 2));
             let e = evaluate(&p, &params, a.as_ref(), b.as_ref());

@@ -230,6 +230,7 @@ mod tests {
             mu_prior: 0.0,
             low_norm: LowNorm::Euclidean,
             block_rows: 16,
+            ..Default::default()
         }
     }
 

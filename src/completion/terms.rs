@@ -6,7 +6,7 @@
 
 use faer::{Mat, MatRef};
 
-use super::l1::{soft_l1, Products, Weights};
+use super::l1::{soft_l1, Precision, Products, Weights};
 use super::{gemm_nn, gemm_tn, mul};
 
 /// The value of one term and its gradients with respect to A and B.
@@ -141,6 +141,7 @@ pub fn low_norm(a: MatRef<f64>, b: MatRef<f64>, grams: Option<(MatRef<f64>, MatR
 /// T is never stored (see [`super::l1`]). When k' < 2k, Z is accumulated directly
 /// (2·m·n·(k + k') flops), otherwise S V and Sᵀ U are (6·m·n·k flops); memory
 /// O((m + n)·k' + block·n).
+#[allow(clippy::too_many_arguments)]
 pub fn l1(
     a: MatRef<f64>,
     b: MatRef<f64>,
@@ -149,10 +150,11 @@ pub fn l1(
     xi: f64,
     weights: Option<Weights>,
     block_rows: usize,
+    precision: Precision,
 ) -> TermValue {
     let (kp, k) = (a.nrows(), a.ncols());
     if kp < 2 * k {
-        let (value, z) = l1_c(a, b, phi, psi, xi, weights, block_rows);
+        let (value, z) = l1_c(a, b, phi, psi, xi, weights, block_rows, precision);
         chain_c(value, z.as_ref(), a, b)
     } else {
         let u = gemm_nn(psi, a); // m × k
@@ -164,6 +166,7 @@ pub fn l1(
             weights,
             block_rows,
             Products::Factored { pu: u.as_ref(), pv: v.as_ref() },
+            precision,
         );
         let grad_a = gemm_tn(psi, r.s_pv.expect("requested").as_ref());
         let grad_b = gemm_tn(phi, r.st_pu.expect("requested").as_ref());
@@ -172,6 +175,7 @@ pub fn l1(
 }
 
 /// Z = ∂/∂C (k' × k') of the L1 term at C = A Bᵀ, with its value: Ψᵀ S Φ.
+#[allow(clippy::too_many_arguments)]
 pub fn l1_c(
     a: MatRef<f64>,
     b: MatRef<f64>,
@@ -180,14 +184,16 @@ pub fn l1_c(
     xi: f64,
     weights: Option<Weights>,
     block_rows: usize,
+    precision: Precision,
 ) -> (f64, Mat<f64>) {
     let u = gemm_nn(psi, a);
     let v = gemm_nn(phi, b);
-    let r = soft_l1(u.as_ref(), v.as_ref(), xi, weights, block_rows, Products::Projected { psi, phi });
+    let r = soft_l1(u.as_ref(), v.as_ref(), xi, weights, block_rows, Products::Projected { psi, phi }, precision);
     (r.value, r.projected.expect("requested"))
 }
 
 /// The value of [`l1`] alone (2·m·n·k flops), for line searches and reports.
+#[allow(clippy::too_many_arguments)]
 pub fn l1_value(
     a: MatRef<f64>,
     b: MatRef<f64>,
@@ -196,10 +202,11 @@ pub fn l1_value(
     xi: f64,
     weights: Option<Weights>,
     block_rows: usize,
+    precision: Precision,
 ) -> f64 {
     let u = gemm_nn(psi, a);
     let v = gemm_nn(phi, b);
-    soft_l1(u.as_ref(), v.as_ref(), xi, weights, block_rows, Products::Value).value
+    soft_l1(u.as_ref(), v.as_ref(), xi, weights, block_rows, Products::Value, precision).value
 }
 
 #[cfg(test)]
@@ -326,14 +333,17 @@ mod tests {
         let phi = randn(N, KP, 500) * 0.1;
         let psi = randn(M, KP, 501) * 0.1;
         for block in [7, 16, 512] {
-            fd_check(&|a, b| l1(a, b, phi.as_ref(), psi.as_ref(), 1e-3, None, block), 8);
+            fd_check(&|a, b| l1(a, b, phi.as_ref(), psi.as_ref(), 1e-3, None, block, Precision::F64), 8);
         }
         let (a, b) = (randn(KP, K, 15), randn(KP, K, 16));
         let reference = l1_dense(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3);
-        let full = l1(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, None, 7);
-        let single = l1(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, None, 1000);
-        for v in [full.value, single.value, l1_value(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, None, 7)]
-        {
+        let full = l1(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, None, 7, Precision::F64);
+        let single = l1(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, None, 1000, Precision::F64);
+        for v in [
+            full.value,
+            single.value,
+            l1_value(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, None, 7, Precision::F64),
+        ] {
             assert!((v - reference).abs() < 1e-12 * reference, "{v} vs {reference}");
         }
         // Block size changes only the summation order.
@@ -343,7 +353,7 @@ mod tests {
         // code paths: k' < 2k (Z = Ψᵀ S Φ accumulated) and k' ≥ 2k (S V and Sᵀ U accumulated).
         for k in [K, 3] {
             let (a, b) = (randn(KP, k, 15), randn(KP, k, 16));
-            let got = l1(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, None, 7);
+            let got = l1(a.as_ref(), b.as_ref(), phi.as_ref(), psi.as_ref(), 1e-3, None, 7, Precision::F64);
             let t = mul(mul(psi.as_ref(), a.as_ref()).as_ref(), mul(phi.as_ref(), b.as_ref()).transpose());
             let s = Mat::from_fn(M, N, |i, j| t[(i, j)] / (t[(i, j)].powi(2) + 1e-3).sqrt());
             let ga = mul(mul(psi.transpose(), s.as_ref()).as_ref(), mul(phi.as_ref(), b.as_ref()).as_ref());
