@@ -164,6 +164,28 @@ pub(crate) enum ExtractChoice {
     Fmap,
 }
 
+/// The preconditioner of the completion method's L-BFGS (subspace form).
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+pub(crate) enum PreconditionChoice {
+    /// None (L-BFGS's scalar initial Hessian).
+    Off,
+    /// Diagonal Gauss–Newton curvature of the quadratic terms (data, Dirichlet, commutativity).
+    Quadratic,
+    /// `quadratic` plus the L1 term's diagonal curvature (refreshed every 10 iterations).
+    Full,
+}
+
+impl From<PreconditionChoice> for funcorr::completion::Precondition {
+    fn from(p: PreconditionChoice) -> Self {
+        use funcorr::completion::Precondition as P;
+        match p {
+            PreconditionChoice::Off => P::Off,
+            PreconditionChoice::Quadratic => P::Quadratic,
+            PreconditionChoice::Full => P::Full,
+        }
+    }
+}
+
 #[derive(Clone, Copy, PartialEq, ValueEnum)]
 pub(crate) enum InitChoice {
     /// A = C₀ zero-padded, B = I.
@@ -265,6 +287,17 @@ pub(crate) struct PipelineArgs {
     /// shape, weighted by their Voronoi areas (0: on every pair of vertices).
     #[arg(long, default_value_t = defaults().completion.l1_sampling.samples())]
     pub(crate) l1_samples: usize,
+    /// Preconditioner of the completion method's L-BFGS (subspace form).
+    #[arg(long, value_enum, default_value = "off")]
+    pub(crate) precondition: PreconditionChoice,
+    /// Continuation in ξ of the completion method: this many stages ξ·10^(N−1), …, ξ, sharing the
+    /// iteration cap (0 or 1: off).
+    #[arg(long, default_value_t = 0)]
+    pub(crate) xi_stages: usize,
+    /// Multiscale schedule of the completion method: this many stages of growing k' and k,
+    /// sharing the iteration cap (0 or 1: off).
+    #[arg(long, default_value_t = 0)]
+    pub(crate) multiscale: usize,
     /// Also stop the completion optimizer when its point map has settled: check it every this
     /// many iterations (0: off), on the L1 samples of X or every vertex.
     #[arg(long, default_value_t = defaults().completion.settled.map_or(0, |s| s.every))]

@@ -326,6 +326,17 @@ pub(crate) struct ReproBenchArgs {
     /// shape (0: on every pair of vertices).
     #[arg(long, default_value_t = 0)]
     l1_samples: usize,
+    /// Preconditioner of the completion method's L-BFGS (subspace form).
+    #[arg(long, value_enum, default_value = "off")]
+    precondition: crate::args::PreconditionChoice,
+    /// Continuation in ξ of the completion method: this many stages ξ·10^(N−1), …, ξ, sharing the
+    /// iteration cap (0 or 1: off).
+    #[arg(long, default_value_t = 0)]
+    xi_stages: usize,
+    /// Multiscale schedule of the completion method: this many stages of growing k' and k,
+    /// sharing the iteration cap (0 or 1: off).
+    #[arg(long, default_value_t = 0)]
+    multiscale: usize,
     /// Also stop the completion optimizer when its point map has settled: check every this many
     /// iterations (0: off).
     #[arg(long, default_value_t = 0)]
@@ -515,6 +526,9 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
             o.completion.params.mu_comm = a.completion_commutativity;
             o.completion.optimize.max_iterations = a.max_iterations;
             o.completion.l1_sampling = funcorr::completion::L1Sampling::farthest(a.l1_samples);
+            o.completion.precondition = a.precondition.into();
+            o.completion.xi_stages = a.xi_stages;
+            o.completion.multiscale = a.multiscale;
             // The map the refinement starts from: the leading refine_k block of C.
             o.completion.settled = crate::options::settled_map(a.map_check_every, a.map_tolerance, o.refine_k)?;
             Ok(o)

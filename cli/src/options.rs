@@ -186,6 +186,9 @@ pub(crate) fn pipeline_options(
         ..comp::OptimizeOptions::default()
     };
     completion.l1_sampling = comp::L1Sampling::farthest(p.l1_samples);
+    completion.precondition = p.precondition.into();
+    completion.xi_stages = p.xi_stages;
+    completion.multiscale = p.multiscale;
     // The map that matters is the one the refinement starts from: that of the leading refine_k
     // block of C (the factors' own map without a refinement).
     let refined = match p.refine {
