@@ -63,9 +63,7 @@ pub mod terms;
 pub use objective::{curvature_c, evaluate, value, CompletionParams, Evaluation, LowNorm, Precondition, Terms};
 // Scaling is defined below.
 pub use lbfgs::{CompletionReport, OptimizeOptions};
-pub use optimize::{
-    init_from_c, init_from_svd, optimize, optimize_preconditioned, optimize_until_settled, SettledMap,
-};
+pub use optimize::{init_from_c, init_from_svd, optimize, optimize_preconditioned, optimize_until_settled, SettledMap};
 pub use solve::{
     solve, solve_with_prior, CompletionOptions, Form, Init, L1Sampling, Optimizer, Solution, SolverReport,
 };
@@ -437,7 +435,10 @@ impl Problem {
     /// the axiomatic prior.
     pub fn leading(&self, k: usize) -> Result<Problem> {
         if k == 0 || k > self.k_prime() {
-            return Err(Error::invalid("k", format!("a leading block of size {k} of a k' = {} problem", self.k_prime())));
+            return Err(Error::invalid(
+                "k",
+                format!("a leading block of size {k} of a k' = {} problem", self.k_prime()),
+            ));
         }
         if let Some(e) = &self.prior {
             if e.k_x() > k {

@@ -193,12 +193,7 @@ where
 /// [`minimize`] with a stopping rule of the caller's: after every accepted step,
 /// `monitor(iterations, x)` may return a [`Stop`] to end the minimization there (e.g.
 /// [`Stop::Settled`] when a quantity derived from x has stopped changing).
-pub fn minimize_monitored<V, F, M>(
-    x0: Vec<f64>,
-    opts: &LbfgsOptions,
-    f: F,
-    monitor: M,
-) -> Result<Minimum<Vec<f64>, V>>
+pub fn minimize_monitored<V, F, M>(x0: Vec<f64>, opts: &LbfgsOptions, f: F, monitor: M) -> Result<Minimum<Vec<f64>, V>>
 where
     V: Value,
     F: FnMut(&[f64], &mut [f64]) -> V,
