@@ -164,6 +164,28 @@ pub(crate) enum ExtractChoice {
     Fmap,
 }
 
+/// The preconditioner of the completion method's L-BFGS (subspace form).
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+pub(crate) enum PreconditionChoice {
+    /// None (L-BFGS's scalar initial Hessian).
+    Off,
+    /// Diagonal Gauss–Newton curvature of the quadratic terms (data, Dirichlet, commutativity).
+    Quadratic,
+    /// `quadratic` plus the L1 term's diagonal curvature (refreshed every 10 iterations).
+    Full,
+}
+
+impl From<PreconditionChoice> for funcorr::completion::Precondition {
+    fn from(p: PreconditionChoice) -> Self {
+        use funcorr::completion::Precondition as P;
+        match p {
+            PreconditionChoice::Off => P::Off,
+            PreconditionChoice::Quadratic => P::Quadratic,
+            PreconditionChoice::Full => P::Full,
+        }
+    }
+}
+
 #[derive(Clone, Copy, PartialEq, ValueEnum)]
 pub(crate) enum InitChoice {
     /// A = C₀ zero-padded, B = I.
@@ -269,6 +291,17 @@ pub(crate) struct PipelineArgs {
     /// sums across blocks stay in f64; relative differences ~1e-7 in its gradient).
     #[arg(long)]
     pub(crate) l1_f32: bool,
+    /// Preconditioner of the completion method's L-BFGS (subspace form).
+    #[arg(long, value_enum, default_value = "off")]
+    pub(crate) precondition: PreconditionChoice,
+    /// Continuation in ξ of the completion method: this many stages ξ·10^(N−1), …, ξ, sharing the
+    /// iteration cap (0 or 1: off).
+    #[arg(long, default_value_t = 0)]
+    pub(crate) xi_stages: usize,
+    /// Multiscale schedule of the completion method: this many stages of growing k' and k,
+    /// sharing the iteration cap (0 or 1: off).
+    #[arg(long, default_value_t = 0)]
+    pub(crate) multiscale: usize,
     /// Also stop the completion optimizer when its point map has settled: check it every this
     /// many iterations (0: off), on the L1 samples of X or every vertex.
     #[arg(long, default_value_t = defaults().completion.settled.map_or(0, |s| s.every))]

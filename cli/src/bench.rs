@@ -329,6 +329,17 @@ pub(crate) struct ReproBenchArgs {
     /// Form the products of the completion method's L1 term in f32.
     #[arg(long)]
     l1_f32: bool,
+    /// Preconditioner of the completion method's L-BFGS (subspace form).
+    #[arg(long, value_enum, default_value = "off")]
+    precondition: crate::args::PreconditionChoice,
+    /// Continuation in ξ of the completion method: this many stages ξ·10^(N−1), …, ξ, sharing the
+    /// iteration cap (0 or 1: off).
+    #[arg(long, default_value_t = 0)]
+    xi_stages: usize,
+    /// Multiscale schedule of the completion method: this many stages of growing k' and k,
+    /// sharing the iteration cap (0 or 1: off).
+    #[arg(long, default_value_t = 0)]
+    multiscale: usize,
     /// Also stop the completion optimizer when its point map has settled: check every this many
     /// iterations (0: off).
     #[arg(long, default_value_t = 0)]
@@ -520,6 +531,9 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
             o.completion.l1_sampling = funcorr::completion::L1Sampling::farthest(a.l1_samples);
             o.completion.params.l1_precision =
                 if a.l1_f32 { funcorr::completion::Precision::F32 } else { funcorr::completion::Precision::F64 };
+            o.completion.precondition = a.precondition.into();
+            o.completion.xi_stages = a.xi_stages;
+            o.completion.multiscale = a.multiscale;
             // The map the refinement starts from: the leading refine_k block of C.
             o.completion.settled = crate::options::settled_map(a.map_check_every, a.map_tolerance, o.refine_k)?;
             Ok(o)

@@ -187,6 +187,9 @@ pub(crate) fn pipeline_options(
     };
     completion.l1_sampling = comp::L1Sampling::farthest(p.l1_samples);
     completion.params.l1_precision = if p.l1_f32 { comp::Precision::F32 } else { comp::Precision::F64 };
+    completion.precondition = p.precondition.into();
+    completion.xi_stages = p.xi_stages;
+    completion.multiscale = p.multiscale;
     // The map that matters is the one the refinement starts from: that of the leading refine_k
     // block of C (the factors' own map without a refinement).
     let refined = match p.refine {

@@ -259,7 +259,8 @@ def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str
     ``init``, ``init_k``, ``optimizer``, ``max_iterations``, ``rel_tol``, ``extract``,
     ``refine_k``, ``icp_iterations``, ``completion_commutativity``,
     ``completion_commutativity_k``, ``completion_prior``, ``l1_samples``, ``l1_f32``,
-    ``map_check_every``, ``map_tolerance``, ``near_above``, ``near_cells``; the Laplacian options of
+    ``map_check_every``, ``map_tolerance``, ``precondition`` (``"off"|"quadratic"|"full"``),
+    ``xi_stages``, ``multiscale``, ``near_above``, ``near_cells``; the Laplacian options of
     :func:`prepare`; ``seg_function``, ``threshold``, ``hks_time``; ``cache_dir``. An unknown
     keyword raises TypeError; a bad value ValueError naming it.
 

@@ -224,6 +224,14 @@ pub(crate) fn match_options(o: &mut Opts, rich: bool) -> PyResult<(MatchOptions,
     if o.flag("l1_f32")?.unwrap_or(false) {
         completion.params.l1_precision = funcorr::completion::Precision::F32;
     }
+    // The conditioning options of issue 12, as the CLI's --precondition, --xi-stages, --multiscale.
+    {
+        use funcorr::completion::Precondition as P;
+        let table = [("off", P::Off), ("quadratic", P::Quadratic), ("full", P::Full)];
+        completion.precondition = choice("precondition", o.string("precondition")?, P::Off, &table)?;
+    }
+    completion.xi_stages = o.usize("xi_stages")?.unwrap_or(0);
+    completion.multiscale = o.usize("multiscale")?.unwrap_or(0);
     let refine_k = o.usize("refine_k")?.unwrap_or(MatchOptions::default().refine_k);
     let every = o.usize("map_check_every")?.unwrap_or(0);
     let tolerance = o.f64("map_tolerance")?.unwrap_or(0.005);

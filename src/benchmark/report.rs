@@ -56,6 +56,9 @@ pub struct PairRecord<'a> {
     /// Why the method failed on the pair.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<&'a str>,
+    /// The solver's report (iterations, objective history) of the methods that iterate.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub solver: Option<&'a crate::matching::SolverReport>,
 }
 
 impl<'a> PairRecord<'a> {
@@ -75,6 +78,7 @@ impl<'a> PairRecord<'a> {
                 seconds: Some(s.seconds),
                 stages: Some(&s.stages),
                 error: None,
+                solver: s.solver.as_ref(),
             },
             Err(msg) => PairRecord {
                 source,
@@ -88,6 +92,7 @@ impl<'a> PairRecord<'a> {
                 seconds: None,
                 stages: None,
                 error: Some(msg),
+                solver: None,
             },
         }
     }

@@ -45,6 +45,8 @@ pub struct PairScore {
     pub stages: Vec<(String, f64)>,
     /// Number q of data functions.
     pub q: usize,
+    /// The solver's report (iterations, objective history, terms) of the methods that iterate.
+    pub solver: Option<crate::matching::SolverReport>,
     /// The map X → Y (length n).
     #[serde(skip)]
     pub map_xy: Vec<usize>,
@@ -108,6 +110,7 @@ pub fn run_pair(ds: &Dataset, x: &PreparedShape, y: &PreparedShape, opts: &Bench
                     seconds: stages.iter().map(|s| s.1).sum(),
                     stages,
                     q: f.q(),
+                    solver: r.solver,
                     errors,
                     map_xy: r.map_xy,
                 })

@@ -93,7 +93,25 @@ pub fn minimize_monitored(
     eval: &mut Objective,
     monitor: &mut dyn FnMut(usize, &[f64]) -> Option<Stop>,
 ) -> Result<(Vec<f64>, CompletionReport)> {
-    let min = optim::lbfgs::minimize_monitored(x0, opts, |x: &[f64], grad: &mut [f64]| eval(x, grad), monitor)?;
+    minimize_preconditioned(x0, opts, eval, monitor, None)
+}
+
+/// [`minimize_monitored`] with an optional preconditioner
+/// ([`crate::optim::lbfgs::minimize_preconditioned`]; `None`: exactly [`minimize_monitored`]).
+pub fn minimize_preconditioned(
+    x0: Vec<f64>,
+    opts: &OptimizeOptions,
+    eval: &mut Objective,
+    monitor: &mut dyn FnMut(usize, &[f64]) -> Option<Stop>,
+    precondition: Option<&mut optim::lbfgs::Preconditioner>,
+) -> Result<(Vec<f64>, CompletionReport)> {
+    let min = optim::lbfgs::minimize_preconditioned(
+        x0,
+        opts,
+        |x: &[f64], grad: &mut [f64]| eval(x, grad),
+        monitor,
+        precondition,
+    )?;
     let reason = match min.report.stop {
         Stop::ZeroGradient => "zero gradient at the start".to_string(),
         stop => stop.to_string(),

@@ -61,10 +61,10 @@ pub mod solve;
 pub mod terms;
 
 pub use l1::Precision;
-pub use objective::{evaluate, value, CompletionParams, Evaluation, LowNorm, Terms};
+pub use objective::{curvature_c, evaluate, value, CompletionParams, Evaluation, LowNorm, Precondition, Terms};
 // Scaling is defined below.
 pub use lbfgs::{CompletionReport, OptimizeOptions};
-pub use optimize::{init_from_c, init_from_svd, optimize, optimize_until_settled, SettledMap};
+pub use optimize::{init_from_c, init_from_svd, optimize, optimize_preconditioned, optimize_until_settled, SettledMap};
 pub use solve::{
     solve, solve_with_prior, CompletionOptions, Form, Init, L1Sampling, Optimizer, Solution, SolverReport,
 };
@@ -426,6 +426,52 @@ impl Problem {
             (Some(y), Some(x)) => Some(Weights { y, x }),
             _ => None,
         }
+    }
+
+    /// The same objective restricted to maps C supported on the leading `k` × `k` block (k ≤ k'):
+    /// the problem on the first k basis functions of each shape, with every weight, sample and
+    /// normalization of this one (the Dirichlet weights keep their normalization by the sum over
+    /// k', so the restricted objective at C equals this one at C zero-padded to k' × k'). For
+    /// the multiscale schedule of [`solve`]. Errors when k is 0, above k', or below the size of
+    /// the axiomatic prior.
+    pub fn leading(&self, k: usize) -> Result<Problem> {
+        if k == 0 || k > self.k_prime() {
+            return Err(Error::invalid(
+                "k",
+                format!("a leading block of size {k} of a k' = {} problem", self.k_prime()),
+            ));
+        }
+        if let Some(e) = &self.prior {
+            if e.k_x() > k {
+                return Err(Error::invalid("k", format!("the prior needs at least {} basis functions", e.k_x())));
+            }
+        }
+        let sub = |m: &Mat<f64>| m.subcols(0, k).to_owned();
+        Ok(Problem {
+            scaling: self.scaling,
+            phi: sub(&self.phi),
+            psi: sub(&self.psi),
+            lambda_x: self.lambda_x[..k].to_vec(),
+            lambda_y: self.lambda_y[..k].to_vec(),
+            eigenvalues_x: self.eigenvalues_x[..k].to_vec(),
+            eigenvalues_y: self.eigenvalues_y[..k].to_vec(),
+            f_hat: self.f_hat.subrows(0, k).to_owned(),
+            g_hat: self.g_hat.subrows(0, k).to_owned(),
+            gram_x: self.gram_x.submatrix(0, 0, k, k).to_owned(),
+            gram_y: self.gram_y.submatrix(0, 0, k, k).to_owned(),
+            l1_weights_x: self.l1_weights_x.clone(),
+            l1_weights_y: self.l1_weights_y.clone(),
+            c_scale: self.c_scale,
+            prior: self.prior.clone(),
+            area_x: self.area_x,
+            area_y: self.area_y,
+            l1_sample: self.l1_sample.as_ref().map(|s| L1Sample {
+                phi: sub(&s.phi),
+                psi: sub(&s.psi),
+                weights_x: s.weights_x.clone(),
+                weights_y: s.weights_y.clone(),
+            }),
+        })
     }
 
     /// This problem's C (r × c) from a functional map between the input bases (e.g.

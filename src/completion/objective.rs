@@ -328,6 +328,101 @@ pub fn value(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b: Ma
     terms
 }
 
+/// The diagonal of the Hessian of the terms of (11) that depend on C = A Bᵀ alone, with
+/// respect to C (k' × k'), at C = A Bᵀ (A, B: k' × k); the building block of the diagonal
+/// preconditioner of [`super::optimize`] ([`Precondition`]).
+///
+/// Entry (i, j) is ∂²f/∂C_ij²:
+/// - data ‖C Â − B̂‖² (Â: k' × q): 2 (Â Âᵀ)_jj (its Hessian is 2 (Â Âᵀ ⊗ I), whose diagonal
+///   this keeps);
+/// - Dirichlet terms: 2 μ1 λ^X_j + 2 μ2 λ^Y_i (exact, the terms are diagonal in C);
+/// - commutativity: 2 μ_c (λ^X_j − λ^Y_i)² inside the k_c × k_c block (exact, normalized
+///   eigenvalues as in the term);
+/// - the L1 term, only with `l1` = true: μ3 Σ_st w_st φ''(t_st) ψ_si² φ_tj² with
+///   φ''(t) = ξ / (t² + ξ)^{3/2}, over the L1 operands (the samples or every vertex: 2·m·n·(k +
+///   k') + 2·m·k'² flops, as one gradient evaluation); exact.
+///
+/// The axiomatic prior ([`CompletionParams::mu_prior`]) and the low-norm term (which is not a
+/// function of C) are left out. Panics if A, B are not both k' × k.
+pub fn curvature_c(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b: MatRef<f64>, l1: bool) -> Mat<f64> {
+    check_shapes(problem, a, b);
+    let kp = problem.k_prime();
+    let f = problem.f_hat.as_ref();
+    let data: Vec<f64> = (0..kp).map(|j| 2.0 * (0..f.ncols()).map(|p| f[(j, p)] * f[(j, p)]).sum::<f64>()).collect();
+    let (lx, ly) = (&problem.lambda_x, &problem.lambda_y);
+    let mut h = Mat::from_fn(kp, kp, |i, j| data[j] + 2.0 * params.mu1 * lx[j] + 2.0 * params.mu2 * ly[i]);
+    if params.mu_comm != 0.0 {
+        let (cx, cy, kc) = comm_setup(problem, params);
+        for j in 0..kc {
+            for i in 0..kc {
+                h[(i, j)] += 2.0 * params.mu_comm * (cx[j] - cy[i]).powi(2);
+            }
+        }
+    }
+    if l1 && params.mu3 != 0.0 {
+        let (phi, psi, weights) = problem.l1_operands();
+        let u = super::gemm_nn(psi, a); // m × k
+        let v = super::gemm_nn(phi, b); // n × k
+        let phi2 = Mat::from_fn(phi.nrows(), kp, |t, j| phi[(t, j)] * phi[(t, j)]); // n × k'
+        let rows = params.block_rows.max(1);
+        let xi = params.xi;
+        let mut r0 = 0;
+        while r0 < u.nrows() {
+            let r = rows.min(u.nrows() - r0);
+            // K_r = w ∘ φ''(U_r Vᵀ) (r × n), then (Ψ_r ∘ Ψ_r)ᵀ K_r (Φ ∘ Φ) (k' × k').
+            let mut kr = super::mul(u.subrows(r0, r), v.transpose());
+            for t in 0..kr.ncols() {
+                for s in 0..r {
+                    let x = kr[(s, t)];
+                    let q = x * x + xi;
+                    let w = weights.map_or(1.0, |w| w.y[r0 + s] * w.x[t]);
+                    kr[(s, t)] = w * xi / (q * q.sqrt());
+                }
+            }
+            let m = super::mul(kr.as_ref(), phi2.as_ref()); // r × k'
+            let psi2 = Mat::from_fn(r, kp, |s, i| psi[(r0 + s, i)] * psi[(r0 + s, i)]);
+            let block = super::gemm_tn(psi2.as_ref(), m.as_ref()) * faer::Scale(params.mu3);
+            h += &block;
+            r0 += r;
+        }
+    }
+    h
+}
+
+/// The curvature of the weighted low-norm term with respect to the entries of A and B: per row
+/// of A (k' values) and per row of B (k'): μ4 w times the diagonal of the Gram matrices Ψᵀ Ψ,
+/// Φᵀ Φ (Euclidean norm, [`Scaling::Paper`]) or μ4 w (mass norms), w the term's factor (1/k
+/// for [`Scaling::Unit`]); zeros when μ4 = 0.
+pub fn low_norm_curvature(problem: &Problem, params: &CompletionParams, k: usize) -> (Vec<f64>, Vec<f64>) {
+    let kp = problem.k_prime();
+    if params.mu4 == 0.0 {
+        return (vec![0.0; kp], vec![0.0; kp]);
+    }
+    let (grams, w) = low_norm_setup(problem, params, k);
+    let c = params.mu4 * w;
+    match grams {
+        Some((gx, gy)) => ((0..kp).map(|i| c * gy[(i, i)]).collect(), (0..kp).map(|j| c * gx[(j, j)]).collect()),
+        None => (vec![c; kp], vec![c; kp]),
+    }
+}
+
+/// The diagonal preconditioner of L-BFGS on the subspace form (11)
+/// ([`super::optimize::optimize_preconditioned`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Precondition {
+    /// None: L-BFGS's usual initial inverse Hessian (sᵀy / yᵀy) I.
+    #[default]
+    Off,
+    /// The Gauss–Newton diagonal in (A, B) of the quadratic terms (data, Dirichlet,
+    /// commutativity, low norm) ([`curvature_c`] without the L1 term); the L1 term's curvature is
+    /// left to L-BFGS's scalar γ (in the preconditioned metric).
+    Quadratic,
+    /// [`Precondition::Quadratic`] plus the exact diagonal of the L1 term's Hessian in C,
+    /// refreshed every 10 iterations.
+    Full,
+}
+
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
@@ -413,6 +508,39 @@ pub(crate) mod tests {
             / (2.0 * h);
         let an = dot(&g, &dc);
         assert!((fd - an).abs() < 1e-6 * an.abs(), "{fd} vs {an}");
+    }
+
+    /// The diagonal curvature in C equals the second differences of the objective along single
+    /// entries of C (with A = C, B = I, so that C_ij is one variable), L1 term included.
+    #[test]
+    fn curvature_in_c_matches_second_differences() {
+        let p = random_problem(50, 40, 8, 6, 31);
+        let params = CompletionParams {
+            mu1: 0.1,
+            mu2: 0.2,
+            mu3: 0.05,
+            mu4: 0.0,
+            xi: 1e-2,
+            mu_comm: 0.01,
+            k_comm: 6,
+            block_rows: 16,
+            ..CompletionParams::default()
+        };
+        let c = randn(8, 8, 5) * 0.3;
+        let eye = Mat::<f64>::identity(8, 8);
+        let h = curvature_c(&p, &params, c.as_ref(), eye.as_ref(), true);
+        let h_quad = curvature_c(&p, &params, c.as_ref(), eye.as_ref(), false);
+        let step = 1e-4;
+        for (i, j) in [(0, 0), (1, 5), (7, 2), (4, 4), (6, 7)] {
+            let at = |d: f64| {
+                let mut cc = c.clone();
+                cc[(i, j)] += d;
+                value(&p, &params, cc.as_ref(), eye.as_ref()).total
+            };
+            let fd = (at(step) - 2.0 * at(0.0) + at(-step)) / (step * step);
+            assert!((fd - h[(i, j)]).abs() < 1e-4 * h[(i, j)].abs(), "({i}, {j}): {fd} vs {}", h[(i, j)]);
+            assert!(h_quad[(i, j)] > 0.0 && h_quad[(i, j)] < h[(i, j)]);
+        }
     }
 
     #[test]

@@ -6,7 +6,7 @@ use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
 use faer::{Mat, MatRef, Par};
 
 use super::lbfgs::{self, CompletionReport, OptimizeOptions};
-use super::objective::{evaluate, CompletionParams};
+use super::objective::{curvature_c, evaluate, low_norm_curvature, CompletionParams, Precondition};
 use super::{mul, Problem};
 use crate::error::{Error, Result};
 use crate::optim::Stop;
@@ -80,6 +80,21 @@ pub fn optimize_until_settled(
     a0: MatRef<f64>,
     b0: MatRef<f64>,
 ) -> Result<(Mat<f64>, Mat<f64>, CompletionReport)> {
+    optimize_preconditioned(problem, params, opts, settled, Precondition::Off, a0, b0)
+}
+
+/// [`optimize_until_settled`] with L-BFGS preconditioned by `precondition`
+/// ([`Precondition::Off`]: exactly [`optimize_until_settled`]); see [`Precondition`] and
+/// [`crate::optim::lbfgs::minimize_preconditioned`].
+pub fn optimize_preconditioned(
+    problem: &Problem,
+    params: &CompletionParams,
+    opts: &OptimizeOptions,
+    settled: Option<SettledMap>,
+    precondition: Precondition,
+    a0: MatRef<f64>,
+    b0: MatRef<f64>,
+) -> Result<(Mat<f64>, Mat<f64>, CompletionReport)> {
     if let Some(s) = settled {
         if s.every == 0 || !(0.0..=1.0).contains(&s.tolerance) {
             return Err(Error::invalid(
@@ -136,9 +151,102 @@ pub fn optimize_until_settled(
             _ => None,
         }
     };
-    let (x, report) = lbfgs::minimize_monitored(pack(a0, b0), opts, &mut eval, &mut monitor)?;
+    let mut pc = DiagonalPreconditioner::new(problem, params, precondition, k);
+    let (x, report) = match pc.as_mut() {
+        None => lbfgs::minimize_monitored(pack(a0, b0), opts, &mut eval, &mut monitor)?,
+        Some(pc) => {
+            let mut apply = |x: &[f64], v: &mut [f64]| pc.apply(x, v);
+            lbfgs::minimize_preconditioned(pack(a0, b0), opts, &mut eval, &mut monitor, Some(&mut apply))?
+        }
+    };
     let (a, b) = unpack(&x, kp, k);
     Ok((a, b, report))
+}
+
+/// Iterations between refreshes of the L1 part of [`Precondition::Full`].
+const L1_REFRESH: usize = 10;
+
+/// The diagonal preconditioner of [`Precondition`] for x = (vec A, vec B) (A, B: k' × k): with
+/// H = [`curvature_c`] (k' × k'), the Gauss–Newton diagonal of the terms of C = A Bᵀ in (A, B),
+/// D_A = H (B ∘ B) and D_B = Hᵀ (A ∘ A) (k' × k' times k' × k), plus the low-norm curvature
+/// ([`low_norm_curvature`]), floored at 10⁻³ of its mean; P = D⁻¹. D is recomputed at every new
+/// x (4·k'²·k flops); the L1 part of H ([`Precondition::Full`]) every [`L1_REFRESH`] new points.
+struct DiagonalPreconditioner<'p> {
+    problem: &'p Problem,
+    params: &'p CompletionParams,
+    k: usize,
+    /// H without the L1 part (constant).
+    quadratic: Mat<f64>,
+    /// H with the L1 part at the last refresh ([`Precondition::Full`] only).
+    full: Option<Mat<f64>>,
+    with_l1: bool,
+    low_a: Vec<f64>,
+    low_b: Vec<f64>,
+    /// The point D was computed at, and D (length 2 k' k).
+    last: Option<(Vec<f64>, Vec<f64>)>,
+    points: usize,
+}
+
+impl<'p> DiagonalPreconditioner<'p> {
+    fn new(problem: &'p Problem, params: &'p CompletionParams, kind: Precondition, k: usize) -> Option<Self> {
+        let with_l1 = match kind {
+            Precondition::Off => return None,
+            Precondition::Quadratic => false,
+            Precondition::Full => true,
+        };
+        let kp = problem.k_prime();
+        let zero = Mat::<f64>::zeros(kp, k);
+        let quadratic = curvature_c(problem, params, zero.as_ref(), zero.as_ref(), false);
+        let (low_a, low_b) = low_norm_curvature(problem, params, k);
+        Some(DiagonalPreconditioner {
+            problem,
+            params,
+            k,
+            quadratic,
+            full: None,
+            with_l1,
+            low_a,
+            low_b,
+            last: None,
+            points: 0,
+        })
+    }
+
+    /// D at x (length 2 k' k).
+    fn diagonal(&mut self, x: &[f64]) -> Vec<f64> {
+        let (kp, k) = (self.problem.k_prime(), self.k);
+        let (a, b) = unpack(x, kp, k);
+        if self.with_l1 && (self.full.is_none() || self.points.is_multiple_of(L1_REFRESH)) {
+            self.full = Some(curvature_c(self.problem, self.params, a.as_ref(), b.as_ref(), true));
+        }
+        self.points += 1;
+        let h = self.full.as_ref().unwrap_or(&self.quadratic);
+        let a2 = Mat::from_fn(kp, k, |i, l| a[(i, l)] * a[(i, l)]);
+        let b2 = Mat::from_fn(kp, k, |j, l| b[(j, l)] * b[(j, l)]);
+        let da = mul(h.as_ref(), b2.as_ref());
+        let db = mul(h.transpose(), a2.as_ref());
+        let mut d = vec![0.0; 2 * kp * k];
+        for l in 0..k {
+            for i in 0..kp {
+                d[l * kp + i] = da[(i, l)] + self.low_a[i];
+                d[kp * k + l * kp + i] = db[(i, l)] + self.low_b[i];
+            }
+        }
+        let mean = d.iter().sum::<f64>() / d.len() as f64;
+        let floor = if mean > 0.0 { 1e-3 * mean } else { 1.0 };
+        d.iter_mut().for_each(|v| *v = v.max(floor));
+        d
+    }
+
+    /// v ← D(x)⁻¹ v.
+    fn apply(&mut self, x: &[f64], v: &mut [f64]) {
+        if self.last.as_ref().is_none_or(|(lx, _)| lx.as_slice() != x) {
+            let d = self.diagonal(x);
+            self.last = Some((x.to_vec(), d));
+        }
+        let (_, d) = self.last.as_ref().expect("set above");
+        v.iter_mut().zip(d).for_each(|(vi, di)| *vi /= di);
+    }
 }
 
 /// The paper's initialization from a functional map C (r × c, r ≤ k', c ≤ k), e.g. Ovsjanikov's:
