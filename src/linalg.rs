@@ -37,7 +37,19 @@ pub fn frob(x: MatRef<f64>, y: MatRef<f64>) -> f64 {
 /// x · y = Σ x_i y_i of two vectors of the same length (summed in order).
 pub fn dot(x: &[f64], y: &[f64]) -> f64 {
     debug_assert_eq!(x.len(), y.len());
-    x.iter().zip(y).map(|(a, b)| a * b).sum()
+    // Eight running sums in a fixed order: one running sum is a chain of dependent adds (4
+    // cycles each, not vectorized under strict f64 semantics) and made L-BFGS's two-loop
+    // recursion over 175k-entry vectors a fifth of a completion iteration. Deterministic.
+    let (xs, ys) = (x.chunks_exact(8), y.chunks_exact(8));
+    let tail: f64 = xs.remainder().iter().zip(ys.remainder()).map(|(a, b)| a * b).sum();
+    let mut acc = [0.0f64; 8];
+    for (xc, yc) in xs.zip(ys) {
+        for ((s, a), b) in acc.iter_mut().zip(xc).zip(yc) {
+            *s += a * b;
+        }
+    }
+    let pairs = [acc[0] + acc[4], acc[1] + acc[5], acc[2] + acc[6], acc[3] + acc[7]];
+    (pairs[0] + pairs[2]) + (pairs[1] + pairs[3]) + tail
 }
 
 /// How a tall-skinny product splits its n rows into rayon tasks (module documentation).

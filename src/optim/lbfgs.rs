@@ -55,6 +55,11 @@ fn axpy(alpha: f64, x: &[f64], y: &[f64]) -> Vec<f64> {
     x.iter().zip(y).map(|(xi, yi)| yi + alpha * xi).collect()
 }
 
+/// y ← y + α x in place (the two-loop recursion: no 8·n-byte allocation per stored pair).
+fn axpy_in_place(alpha: f64, x: &[f64], y: &mut [f64]) {
+    y.iter_mut().zip(x).for_each(|(yi, xi)| *yi += alpha * xi);
+}
+
 /// A trial point of a line search along x + α p.
 #[derive(Clone, Debug)]
 pub struct LinePoint<V> {
@@ -256,7 +261,7 @@ where
         let mut alphas = Vec::with_capacity(pairs.len());
         for (s, y, rho) in pairs.iter().rev() {
             let a = rho * dot(s, &q);
-            q = axpy(-a, y, &q);
+            axpy_in_place(-a, y, &mut q);
             alphas.push(a);
         }
         let preconditioned = match precondition.as_deref_mut() {
@@ -280,7 +285,7 @@ where
         };
         for ((s, y, rho), a) in pairs.iter().zip(alphas.iter().rev()) {
             let b = rho * dot(y, &q);
-            q = axpy(a - b, s, &q);
+            axpy_in_place(a - b, s, &mut q);
         }
         let mut p: Vec<f64> = q.iter().map(|v| -v).collect();
         let mut d0 = dot(&p, &g);
