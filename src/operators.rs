@@ -258,9 +258,16 @@ pub fn orientation_operators(
                 }
             }
             // W[F, b] = ⟨n_F × ∇f_F, ∇φ_b,F⟩.
-            let w = Mat::from_fn(nf, k, |fc, b| {
-                v[fc][0] * g[0][(fc, b)] + v[fc][1] * g[1][(fc, b)] + v[fc][2] * g[2][(fc, b)]
-            });
+            // Column by column over contiguous slices (vectorized; same sums in the same order).
+            let vc: [Vec<f64>; 3] = std::array::from_fn(|c| v.iter().map(|x| x[c]).collect());
+            let mut w = Mat::<f64>::zeros(nf, k);
+            for b in 0..k {
+                let (g0, g1, g2) = (g[0].col_as_slice(b), g[1].col_as_slice(b), g[2].col_as_slice(b));
+                let terms = vc[0].iter().zip(g0).zip(vc[1].iter().zip(g1)).zip(vc[2].iter().zip(g2));
+                for (out, (((v0, g0), (v1, g1)), (v2, g2))) in w.col_as_slice_mut(b).iter_mut().zip(terms) {
+                    *out = v0 * g0 + v1 * g1 + v2 * g2;
+                }
+            }
             let mut o = Mat::<f64>::zeros(k, k);
             matmul(o.as_mut(), Accum::Replace, means.transpose(), w.as_ref(), 1.0, Par::Seq);
             Ok(o)

@@ -328,7 +328,10 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
                     let col = &dots.col_as_slice(j)[..len];
                     let (rn, rl) = (ref_norm[c0 + j], ref_len[c0 + j]);
                     for ((hi, &dot), &sc) in best_hi.iter_mut().zip(col).zip(&scale) {
-                        *hi = hi.min(rn - 2.0 * dot as f64 + sc * rl);
+                        // A compare-and-select, not f64::min: it compiles to `minpd` (the
+                        // values are finite, checked above), f64::min's NaN rule to scalar code.
+                        let v = rn - 2.0 * dot as f64 + sc * rl;
+                        *hi = if v < *hi { v } else { *hi };
                     }
                 }
                 // Pass 2: the candidates, lower bound ≤ best upper bound. A column is scanned
@@ -341,7 +344,8 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
                     let full = len - len % LANES;
                     for i0 in (0..full).step_by(LANES) {
                         for l in 0..LANES {
-                            margin[l] = margin[l].max(best_hi[i0 + l] - lo(i0 + l));
+                            let x = best_hi[i0 + l] - lo(i0 + l);
+                            margin[l] = if x > margin[l] { x } else { margin[l] }; // `maxpd`, as above
                         }
                     }
                     let tail = (full..len).map(|i| best_hi[i] - lo(i)).fold(f64::NEG_INFINITY, f64::max);
