@@ -345,7 +345,8 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
                     for i0 in (0..full).step_by(LANES) {
                         for l in 0..LANES {
                             let x = best_hi[i0 + l] - lo(i0 + l);
-                            margin[l] = if x > margin[l] { x } else { margin[l] }; // `maxpd`, as above
+                            margin[l] = if x > margin[l] { x } else { margin[l] };
+                            // `maxpd`, as above
                         }
                     }
                     let tail = (full..len).map(|i| best_hi[i] - lo(i)).fold(f64::NEG_INFINITY, f64::max);

@@ -186,6 +186,30 @@ impl From<PreconditionChoice> for funcorr::completion::Precondition {
     }
 }
 
+/// Arithmetic of the completion method's L1 products ([`funcorr::completion::Precision`]).
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+pub(crate) enum PrecisionChoice {
+    /// f64 products.
+    F64,
+    /// f32 products, f64 sums and smoothed absolute value.
+    F32,
+}
+
+/// The L1 precision from `--l1-precision` and the legacy `--l1-f32` (they conflict), or the
+/// method's default when neither is given.
+pub(crate) fn l1_precision(
+    choice: Option<PrecisionChoice>,
+    l1_f32: bool,
+    default: funcorr::completion::Precision,
+) -> funcorr::completion::Precision {
+    use funcorr::completion::Precision as P;
+    match (choice, l1_f32) {
+        (Some(PrecisionChoice::F32), _) | (None, true) => P::F32,
+        (Some(PrecisionChoice::F64), _) => P::F64,
+        (None, false) => default,
+    }
+}
+
 #[derive(Clone, Copy, PartialEq, ValueEnum)]
 pub(crate) enum InitChoice {
     /// A = C₀ zero-padded, B = I.
@@ -284,12 +308,18 @@ pub(crate) struct PipelineArgs {
     #[arg(long, default_value_t = defaults().completion.optimize.rel_tol)]
     pub(crate) rel_tol: f64,
     /// Evaluate the completion method's L1 term on this many farthest-point samples of each
-    /// shape, weighted by their Voronoi areas (0: on every pair of vertices).
-    #[arg(long, default_value_t = defaults().completion.l1_sampling.samples())]
-    pub(crate) l1_samples: usize,
-    /// Form the products of the completion method's L1 term in f32 (the smoothed |·| and the
-    /// sums across blocks stay in f64; relative differences ~1e-7 in its gradient).
+    /// shape, weighted by their Voronoi areas (0: on every pair of vertices, as the paper).
+    /// Default: 1000 with the unit scaling, 0 with `--scaling paper` (the samples need the
+    /// scale-free weights).
     #[arg(long)]
+    pub(crate) l1_samples: Option<usize>,
+    /// Arithmetic of the products of the completion method's L1 term (f32: the smoothed |·| and
+    /// the sums across blocks stay in f64; relative differences ~1e-7 in its gradient).
+    /// Default: f32 for the subspace form (11), f64 for the others.
+    #[arg(long, value_enum)]
+    pub(crate) l1_precision: Option<PrecisionChoice>,
+    /// The same as --l1-precision f32 (kept for scripts written before f32 became the default).
+    #[arg(long, hide = true, conflicts_with = "l1_precision")]
     pub(crate) l1_f32: bool,
     /// Preconditioner of the completion method's L-BFGS (subspace form).
     #[arg(long, value_enum, default_value = "off")]
@@ -298,10 +328,10 @@ pub(crate) struct PipelineArgs {
     /// iteration cap (0 or 1: off).
     #[arg(long, default_value_t = 0)]
     pub(crate) xi_stages: usize,
-    /// Multiscale schedule of the completion method: this many stages of growing k' and k,
-    /// sharing the iteration cap (0 or 1: off).
-    #[arg(long, default_value_t = 0)]
-    pub(crate) multiscale: usize,
+    /// Multiscale schedule of the completion method (subspace form): this many stages of
+    /// growing k' and k, sharing the iteration cap (0 or 1: off). Default: 2.
+    #[arg(long)]
+    pub(crate) multiscale: Option<usize>,
     /// Also stop the completion optimizer when its point map has settled: check it every this
     /// many iterations (0: off), on the L1 samples of X or every vertex.
     #[arg(long, default_value_t = defaults().completion.settled.map_or(0, |s| s.every))]

@@ -314,7 +314,7 @@ pub(crate) struct ReproBenchArgs {
     #[arg(long, value_enum, value_delimiter = ',', default_value = "fmap,pokrass,completion")]
     methods: Vec<MethodChoice>,
     /// Iteration cap of the completion optimizer.
-    #[arg(long, default_value_t = 300)]
+    #[arg(long, default_value_t = crate::args::defaults().completion.optimize.max_iterations)]
     max_iterations: usize,
     /// The paper's weights taken literally (`paper`) or scale-free (`unit`, funcorr's default).
     #[arg(long, value_enum, default_value = "unit")]
@@ -323,11 +323,16 @@ pub(crate) struct ReproBenchArgs {
     #[arg(long, default_value_t = 1e-2)]
     completion_commutativity: f64,
     /// Evaluate the completion method's L1 term on this many farthest-point samples of each
-    /// shape (0: on every pair of vertices).
-    #[arg(long, default_value_t = 0)]
-    l1_samples: usize,
-    /// Form the products of the completion method's L1 term in f32.
+    /// shape (0: on every pair of vertices, as the paper). Default: 1000 with the unit scaling,
+    /// 0 with `--scaling paper`.
     #[arg(long)]
+    l1_samples: Option<usize>,
+    /// Arithmetic of the products of the completion method's L1 term (f64: as the paper).
+    /// Default: f32.
+    #[arg(long, value_enum)]
+    l1_precision: Option<crate::args::PrecisionChoice>,
+    /// The same as --l1-precision f32 (kept for scripts written before f32 became the default).
+    #[arg(long, hide = true, conflicts_with = "l1_precision")]
     l1_f32: bool,
     /// Preconditioner of the completion method's L-BFGS (subspace form).
     #[arg(long, value_enum, default_value = "off")]
@@ -337,9 +342,9 @@ pub(crate) struct ReproBenchArgs {
     #[arg(long, default_value_t = 0)]
     xi_stages: usize,
     /// Multiscale schedule of the completion method: this many stages of growing k' and k,
-    /// sharing the iteration cap (0 or 1: off).
-    #[arg(long, default_value_t = 0)]
-    multiscale: usize,
+    /// sharing the iteration cap (0 or 1: off, as the paper). Default: 2.
+    #[arg(long)]
+    multiscale: Option<usize>,
     /// Also stop the completion optimizer when its point map has settled: check every this many
     /// iterations (0: off).
     #[arg(long, default_value_t = 0)]
@@ -528,12 +533,16 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
             o.completion = funcorr::matching::completion_defaults(rich, a.scaling.into(), Form::Subspace);
             o.completion.params.mu_comm = a.completion_commutativity;
             o.completion.optimize.max_iterations = a.max_iterations;
-            o.completion.l1_sampling = funcorr::completion::L1Sampling::farthest(a.l1_samples);
+            if let Some(samples) = a.l1_samples {
+                o.completion.l1_sampling = funcorr::completion::L1Sampling::farthest(samples);
+            }
             o.completion.params.l1_precision =
-                if a.l1_f32 { funcorr::completion::Precision::F32 } else { funcorr::completion::Precision::F64 };
+                crate::args::l1_precision(a.l1_precision, a.l1_f32, o.completion.params.l1_precision);
             o.completion.precondition = a.precondition.into();
             o.completion.xi_stages = a.xi_stages;
-            o.completion.multiscale = a.multiscale;
+            if let Some(stages) = a.multiscale {
+                o.completion.multiscale = stages;
+            }
             // The map the refinement starts from: the leading refine_k block of C.
             o.completion.settled = crate::options::settled_map(a.map_check_every, a.map_tolerance, o.refine_k)?;
             Ok(o)

@@ -185,11 +185,16 @@ pub(crate) fn pipeline_options(
         rel_tol: p.rel_tol,
         ..comp::OptimizeOptions::default()
     };
-    completion.l1_sampling = comp::L1Sampling::farthest(p.l1_samples);
-    completion.params.l1_precision = if p.l1_f32 { comp::Precision::F32 } else { comp::Precision::F64 };
+    if let Some(samples) = p.l1_samples {
+        completion.l1_sampling = comp::L1Sampling::farthest(samples);
+    }
+    completion.params.l1_precision =
+        crate::args::l1_precision(p.l1_precision, p.l1_f32, completion.params.l1_precision);
     completion.precondition = p.precondition.into();
     completion.xi_stages = p.xi_stages;
-    completion.multiscale = p.multiscale;
+    if let Some(stages) = p.multiscale {
+        completion.multiscale = stages;
+    }
     // The map that matters is the one the refinement starts from: that of the leading refine_k
     // block of C (the factors' own map without a refinement).
     let refined = match p.refine {

@@ -258,7 +258,8 @@ def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str
     (``"subspace"|"fixed-rank"|"low-rank"|"low-norm"``), ``scaling``, ``mu1``…``mu4``, ``xi``,
     ``init``, ``init_k``, ``optimizer``, ``max_iterations``, ``rel_tol``, ``extract``,
     ``refine_k``, ``icp_iterations``, ``completion_commutativity``,
-    ``completion_commutativity_k``, ``completion_prior``, ``l1_samples``, ``l1_f32``,
+    ``completion_commutativity_k``, ``completion_prior``, ``l1_samples``, ``l1_precision``
+    (``"f32"|"f64"``; ``l1_f32=True`` is the same as ``"f32"``),
     ``map_check_every``, ``map_tolerance``, ``precondition`` (``"off"|"quadratic"|"full"``),
     ``xi_stages``, ``multiscale``, ``near_above``, ``near_cells``; the Laplacian options of
     :func:`prepare`; ``seg_function``, ``threshold``, ``hks_time``; ``cache_dir``. An unknown

@@ -219,10 +219,18 @@ pub(crate) fn match_options(o: &mut Opts, rich: bool) -> PyResult<(MatchOptions,
     };
     // The L1 samples and the stopping rule on the point map (issue 12), as the CLI's
     // --l1-samples, --map-check-every, --map-tolerance.
-    completion.l1_sampling = funcorr::completion::L1Sampling::farthest(o.usize("l1_samples")?.unwrap_or(0));
-    // The CLI's --l1-f32.
-    if o.flag("l1_f32")?.unwrap_or(false) {
-        completion.params.l1_precision = funcorr::completion::Precision::F32;
+    if let Some(samples) = o.usize("l1_samples")? {
+        completion.l1_sampling = funcorr::completion::L1Sampling::farthest(samples);
+    }
+    // The CLI's --l1-precision (and its older --l1-f32).
+    {
+        use funcorr::completion::Precision as P;
+        let default = completion.params.l1_precision;
+        completion.params.l1_precision =
+            choice("l1_precision", o.string("l1_precision")?, default, &[("f64", P::F64), ("f32", P::F32)])?;
+        if o.flag("l1_f32")?.unwrap_or(false) {
+            completion.params.l1_precision = P::F32;
+        }
     }
     // The conditioning options of issue 12, as the CLI's --precondition, --xi-stages, --multiscale.
     {
@@ -231,7 +239,9 @@ pub(crate) fn match_options(o: &mut Opts, rich: bool) -> PyResult<(MatchOptions,
         completion.precondition = choice("precondition", o.string("precondition")?, P::Off, &table)?;
     }
     completion.xi_stages = o.usize("xi_stages")?.unwrap_or(0);
-    completion.multiscale = o.usize("multiscale")?.unwrap_or(0);
+    if let Some(stages) = o.usize("multiscale")? {
+        completion.multiscale = stages;
+    }
     let refine_k = o.usize("refine_k")?.unwrap_or(MatchOptions::default().refine_k);
     let every = o.usize("map_check_every")?.unwrap_or(0);
     let tolerance = o.f64("map_tolerance")?.unwrap_or(0.005);

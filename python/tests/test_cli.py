@@ -56,6 +56,14 @@ def test_default_match_equals_the_cli(cli, tmp_path, default_match):
             dict(method="completion", data="wks:30", kprime=40, k=10, max_iterations=10, l1_f32=True),
         ),
         (
+            # The paper's literal setting instead of the default speed settings: every vertex,
+            # f64 products, one scale.
+            ["--method", "completion", "--data", "wks:30", "--kprime", "40", "-k", "10", "--max-iterations", "10",
+             "--l1-samples", "0", "--l1-precision", "f64", "--multiscale", "1"],
+            dict(method="completion", data="wks:30", kprime=40, k=10, max_iterations=10, l1_samples=0,
+                 l1_precision="f64", multiscale=1),
+        ),
+        (
             ["--near-above", "0", "--near-cells", "8", "--zoomout-samples", "1000"],
             dict(near_above=0, near_cells=8, zoomout_samples=1000),
         ),

@@ -65,7 +65,8 @@ pub enum L1Sampling {
     All,
     /// On `samples` farthest-point samples of each shape (Euclidean, deterministic), each
     /// weighted by the area of its Voronoi cell: a quadrature of ∫∫ √(t² + ξ) dy dx at
-    /// (m n) / samples² of the cost. Needs the vertex positions.
+    /// (m n) / samples² of the cost. Needs the vertex positions: shapes without them (graphs,
+    /// high-dimensional point sets) are summed over every vertex.
     Farthest {
         /// Samples per shape.
         samples: usize,
@@ -290,7 +291,8 @@ pub fn solve(
 /// weight 0. Only the subspace form (11) has it. Errors: those of [`solve`], a prior with weight 0
 /// or a weight without a prior, a prior larger than k', a prior with another form.
 ///
-/// `points` (X: n, Y: m vertex positions) are needed by [`L1Sampling::Farthest`] only.
+/// `points` (X: n, Y: m vertex positions) are used by [`L1Sampling::Farthest`] only (without
+/// them the L1 term is summed over every vertex).
 #[allow(clippy::too_many_arguments)]
 pub fn solve_with_prior(
     bx: &Basis,
@@ -512,8 +514,9 @@ fn l1_samples(
         L1Sampling::All => Ok(None),
         L1Sampling::Farthest { samples } => {
             let s = positive(samples)?;
+            // Shapes without 3-D positions (graphs, high-dimensional point sets): every vertex.
             let Some((px, py)) = points else {
-                return Err(Error::invalid("L1 samples", "farthest-point samples need the vertex positions"));
+                return Ok(None);
             };
             if px.len() != bx.n() || py.len() != by.n() {
                 return Err(Error::invalid(
@@ -755,9 +758,7 @@ mod tests {
             eprintln!("{samples} samples: {:.1}% recovered, {}", 100.0 * rate, s.report);
             assert!(rate >= 0.9, "{samples}: {rate}");
         }
-        // Farthest-point samples need positions; sampling needs the scale-free weights.
-        let e = solve_with_prior(&sp.bx, &sp.by, None, &sp.f, &sp.g, c0.as_ref(), &opts, None, None).unwrap_err();
-        assert!(e.to_string().contains("positions"), "{e}");
+        // Sampling needs the scale-free weights (without positions: every vertex, tested below).
         opts.scaling = Scaling::Paper;
         let e = solve_with_prior(&sp.bx, &sp.by, None, &sp.f, &sp.g, c0.as_ref(), &opts, None, points).unwrap_err();
         assert!(e.to_string().contains("L1 samples"), "{e}");
@@ -795,6 +796,34 @@ mod tests {
             eprintln!("{pc:?}, ξ stages {xs}, multiscale {ms}: {:.1}% recovered, {}", 100.0 * rate, s.report);
             assert!(rate >= 0.9, "{pc:?} {xs} {ms}: {rate}");
         }
+        // `funcorr match --method completion`'s defaults (L1 samples, f32 products, two scales)
+        // at this size, with 200 samples (the default 1000 would be every vertex here).
+        let mut d = crate::matching::completion_defaults(false, Scaling::Unit, Form::Subspace);
+        assert_eq!(d.params.l1_precision, crate::completion::Precision::F32);
+        assert!(d.multiscale >= 2 && d.l1_sampling.samples() > 0);
+        (d.k_prime, d.k, d.optimize.max_iterations, d.params.k_comm) = (40, 30, 1000, 20);
+        d.l1_sampling = L1Sampling::Farthest { samples: 200 };
+        let s = solve_with_prior(&sp.bx, &sp.by, None, &sp.f, &sp.g, c0.as_ref(), &d, None, points).unwrap();
+        let rate = fraction(&nearest_neighbors(s.left.as_ref(), s.right.as_ref()).unwrap(), &sp.truth);
+        eprintln!("match defaults: {:.1}% recovered, {}", 100.0 * rate, s.report);
+        assert!(rate >= 0.9, "match defaults: {rate}");
+    }
+
+    /// Farthest-point L1 samples need 3-D positions; without them (graphs, high-dimensional
+    /// point sets) the term is summed over every vertex: the same solution as `All`.
+    #[test]
+    fn l1_samples_without_positions_use_every_vertex() {
+        let sp = small_pair(3, 20);
+        let c0 = ovsjanikov(&sp.bx, &sp.by, &sp.f, &sp.g, 10, &OvsjanikovOptions { commutativity: 1e-2 }).unwrap();
+        let mut opts = CompletionOptions::paper(false, Scaling::Unit);
+        (opts.k_prime, opts.k, opts.optimize.max_iterations) = (20, 12, 20);
+        let all = solve_with_prior(&sp.bx, &sp.by, None, &sp.f, &sp.g, c0.as_ref(), &opts, None, None).unwrap();
+        opts.l1_sampling = L1Sampling::Farthest { samples: 100 };
+        let none = solve_with_prior(&sp.bx, &sp.by, None, &sp.f, &sp.g, c0.as_ref(), &opts, None, None).unwrap();
+        assert_eq!(all.c, none.c);
+        let points = Some((sp.px.as_slice(), sp.py.as_slice()));
+        let sampled = solve_with_prior(&sp.bx, &sp.by, None, &sp.f, &sp.g, c0.as_ref(), &opts, None, points).unwrap();
+        assert_ne!(all.c, sampled.c, "with positions the samples are used");
     }
 
     /// The stopping rule on the point map ends L-BFGS before the objective's rules, with the
