@@ -228,8 +228,8 @@ fn comm_setup(problem: &Problem, params: &CompletionParams) -> (Vec<f64>, Vec<f6
 ///
 /// The terms that are functions of C = A Bᵀ (data, Dirichlet, commutativity, prior, and the L1
 /// term when k' < 2k) share one C and one chain rule: their gradient Z = ∂f/∂C (k' × k') is
-/// summed first and ∇_A = Z B, ∇_B = Zᵀ A formed once (2 k'²k flops per term saved twice over:
-/// forming C and chaining it per term was a third of an evaluation at k' = 350, k = 250).
+/// summed first and ∇_A = Z B, ∇_B = Zᵀ A formed once (forming C and chaining per term cost
+/// 1.7 s of a 13.1 s completion stage on a 5k pair at k' = 350, k = 250; BENCHMARKS.md).
 /// With k' ≥ 2k the L1 term keeps its factored gradients ([`terms::l1`]), cheaper there.
 pub fn evaluate(problem: &Problem, params: &CompletionParams, a: MatRef<f64>, b: MatRef<f64>) -> Evaluation {
     check_shapes(problem, a, b);
