@@ -353,15 +353,19 @@ mod tests {
     #[test]
     fn nearest_neighbors_match_brute_force() {
         let mut rng = Normal::new(7);
+        // The nearest row of r for every row of q, by brute force against `nearest_neighbors`.
+        let check_nearest = |r: &Mat<f64>, q: &Mat<f64>| {
+            let got = nearest_neighbors(r.as_ref(), q.as_ref()).unwrap();
+            for i in 0..q.nrows() {
+                let dist = |j: usize| (0..r.ncols()).map(|c| (q[(i, c)] - r[(j, c)]).powi(2)).sum::<f64>();
+                let want = (0..r.nrows()).min_by(|&a, &b| dist(a).total_cmp(&dist(b))).unwrap();
+                assert_eq!(got[i], want, "query {i}");
+            }
+        };
         let (m, n, d) = (700, 600, 13);
         let r = Mat::from_fn(m, d, |_, _| rng.sample());
         let q = Mat::from_fn(n, d, |_, _| rng.sample());
-        let got = nearest_neighbors(r.as_ref(), q.as_ref()).unwrap();
-        for i in 0..n {
-            let dist = |j: usize| (0..d).map(|c| (q[(i, c)] - r[(j, c)]).powi(2)).sum::<f64>();
-            let want = (0..m).min_by(|&a, &b| dist(a).total_cmp(&dist(b))).unwrap();
-            assert_eq!(got[i], want, "query {i}");
-        }
+        check_nearest(&r, &q);
         let mip = max_inner_product(r.as_ref(), q.as_ref()).unwrap();
         for i in 0..n {
             let dot = |j: usize| (0..d).map(|c| q[(i, c)] * r[(j, c)]).sum::<f64>();
@@ -375,12 +379,7 @@ mod tests {
         let (m, n, d) = (4_501, 263, 5);
         let r = Mat::from_fn(m, d, |_, _| rng.sample());
         let q = Mat::from_fn(n, d, |_, _| rng.sample());
-        let got = nearest_neighbors(r.as_ref(), q.as_ref()).unwrap();
-        for i in 0..n {
-            let dist = |j: usize| (0..d).map(|c| (q[(i, c)] - r[(j, c)]).powi(2)).sum::<f64>();
-            let want = (0..m).min_by(|&a, &b| dist(a).total_cmp(&dist(b))).unwrap();
-            assert_eq!(got[i], want, "query {i}");
-        }
+        check_nearest(&r, &q);
     }
 
     #[test]

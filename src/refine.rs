@@ -96,6 +96,19 @@ pub struct DescriptorBlock<'a> {
     pub y: MatRef<'a, f64>,
 }
 
+/// The size (k_X, k_Y) of C_yx (k_X × k_Y), or an error naming "C" when it is empty or has more
+/// rows than Φ or columns than Ψ has.
+fn check_map_fits(phi: MatRef<f64>, psi: MatRef<f64>, c_yx: MatRef<f64>) -> Result<(usize, usize)> {
+    let (kx, ky) = (c_yx.nrows(), c_yx.ncols());
+    if kx == 0 || ky == 0 || kx > phi.ncols() || ky > psi.ncols() {
+        return Err(Error::invalid(
+            "C",
+            format!("a {kx}×{ky} map does not fit bases with {} and {} columns", phi.ncols(), psi.ncols()),
+        ));
+    }
+    Ok((kx, ky))
+}
+
 /// [`map_of_pullback`] with a descriptor block: π(i) minimizes
 /// ‖Φ_i − (Ψ C_yxᵀ)_j‖² + ‖F_i − G_j‖² (the descriptor term of Ren et al. 2021's discrete
 /// solver: ‖Π G − F‖² separates over the rows of Π).
@@ -106,13 +119,7 @@ pub fn map_of_pullback_with(
     block: Option<DescriptorBlock>,
     rows: Option<&[usize]>,
 ) -> Result<Vec<usize>> {
-    let (kx, ky) = (c_yx.nrows(), c_yx.ncols());
-    if kx == 0 || ky == 0 || kx > phi.ncols() || ky > psi.ncols() {
-        return Err(Error::invalid(
-            "C",
-            format!("a {kx}×{ky} map does not fit bases with {} and {} columns", phi.ncols(), psi.ncols()),
-        ));
-    }
+    let (kx, ky) = check_map_fits(phi, psi, c_yx)?;
     if let Some(r) = rows {
         if r.iter().any(|&i| i >= phi.nrows()) {
             return Err(Error::invalid("rows", "a vertex id is out of range"));
@@ -219,13 +226,7 @@ pub fn map_of_pullback_near_at(
     near: &Near,
     rows: &[usize],
 ) -> Result<Vec<usize>> {
-    let (kx, ky) = (c_yx.nrows(), c_yx.ncols());
-    if kx == 0 || ky == 0 || kx > phi.ncols() || ky > psi.ncols() {
-        return Err(Error::invalid(
-            "C",
-            format!("a {kx}×{ky} map does not fit bases with {} and {} columns", phi.ncols(), psi.ncols()),
-        ));
-    }
+    let (kx, ky) = check_map_fits(phi, psi, c_yx)?;
     let reference = mul(psi.subcols(0, ky), c_yx.transpose());
     let query = phi.subcols(0, kx);
     let images = sample_images_near(reference.as_ref(), query, sx, y_cells, near)?;
