@@ -9,7 +9,9 @@
 #   e.g. bench/completion_speed.sh ../shared/data/faust_r 5 3 target/release/funcorr "0 1000"
 #   (SAMPLES 0 = every vertex; pairs FIRST..FIRST+N-1 of pairs.txt, 1-based line numbers;
 #   the optional last argument lists extra `match` option sets separated by ';', each run for
-#   every SAMPLES value, e.g. ";--l1-f32;--multiscale 2" — an empty set is the default)
+#   every SAMPLES value, e.g. ";--l1-f32;--multiscale 2" — an empty set is `funcorr match`'s
+#   defaults: since commit 7f55c16 f32 products and two scales, so compare with
+#   "--l1-precision f64 --multiscale 1" for the paper's arithmetic)
 set -euo pipefail
 ds=$1; first=$2; n=$3; bin=$4; samples=$5; variants=${6:-}
 IFS=';' read -r -a option_sets <<< "$variants"
