@@ -226,9 +226,14 @@ pub(crate) fn match_options(o: &mut Opts, rich: bool) -> PyResult<(MatchOptions,
     {
         use funcorr::completion::Precision as P;
         let default = completion.params.l1_precision;
+        let precision = o.string("l1_precision")?;
+        let given = precision.is_some();
         completion.params.l1_precision =
-            choice("l1_precision", o.string("l1_precision")?, default, &[("f64", P::F64), ("f32", P::F32)])?;
+            choice("l1_precision", precision, default, &[("f64", P::F64), ("f32", P::F32)])?;
         if o.flag("l1_f32")?.unwrap_or(false) {
+            if given {
+                return Err(value_error("l1_f32", "give either l1_precision or l1_f32, not both"));
+            }
             completion.params.l1_precision = P::F32;
         }
     }

@@ -112,6 +112,10 @@ def test_match_options_are_checked_before_any_work(mesh_x):
         funcorr.match(X, X, w_orientation=-1.0)
     with pytest.raises(ValueError, match="k: expected a non-negative integer"):
         funcorr.match(X, X, method="fmap", k=-3)
+    with pytest.raises(ValueError, match="l1_precision: \"f16\": expected one of f64, f32"):
+        funcorr.match(X, X, method="completion", data="wks:30", l1_precision="f16")
+    with pytest.raises(ValueError, match="l1_f32: give either l1_precision or l1_f32"):
+        funcorr.match(X, X, method="completion", data="wks:30", l1_precision="f64", l1_f32=True)
     with pytest.raises(TypeError, match="zoomout-to|zoomout_too"):
         funcorr.match(X, X, zoomout_too=50)
     V, F = mesh_x
