@@ -157,7 +157,9 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     st.parts.extend(sty.parts.into_iter().map(|s| format!("Y {s}")));
     let (f, g) = st.run("data", || pair_data(&args.data, px.parts(), py.parts(), &args.seg))?;
     let r = funcorr::matching::run_prepared(&px, &py, &f, &g, &opts)?;
-    let (x, y, bx, by) = (&px.shape, &py.shape, &px.basis, &py.basis);
+    let (x, y) = (&px.shape, &py.shape);
+    // The soft maps read C (between the input bases) with the input bases.
+    let input_bases = (!args.soft.is_empty()).then(|| (px.input_basis(), py.input_basis()));
     for (name, secs) in &r.stages {
         st.note(format!("{name} {secs:.3} s"));
     }
@@ -174,7 +176,7 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
                 write_mat_npy(&out.join("A.npy"), a)?;
                 write_mat_npy(&out.join("B.npy"), b)?;
             }
-            for &i in &args.soft {
+            for (&i, (bx, by)) in args.soft.iter().zip(std::iter::repeat(input_bases.as_ref()).flatten()) {
                 let t = funcorr::pointwise::soft_map_column(
                     bx.eigenvectors.as_ref(),
                     by.eigenvectors.as_ref(),

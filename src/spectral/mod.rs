@@ -155,12 +155,26 @@ pub fn eigen_basis(lap: &Laplacian, opts: &SpectralOptions, progress: Option<Pro
     if !(opts.tol > 0.0 && opts.max_residual > 0.0) {
         return Err(Error::invalid("tol", "tolerances must be positive"));
     }
-    let sqrt_m: Vec<f64> = lap.mass.iter().map(|a| a.sqrt()).collect();
-    let (mut theta_lambda, mut u, info) = if n <= opts.dense_below {
-        dense_eigen(lap, &sqrt_m, k)?
+    // The solver works on the problem of the shape scaled to unit area (A / area_total): W is
+    // dimensionless (cotangent weights) or unchanged, so every number the solvers see is the same
+    // whatever the shape's units (faer's dense and tridiagonal eigensolvers have absolute
+    // thresholds: at 10⁻³ of a body's size the Ritz values fell below them and Lanczos stalled
+    // at residuals of 10⁻⁶). Then λ = λ' / area_total and φ = φ' / √area_total.
+    let total: f64 = lap.mass.iter().sum();
+    if !(total.is_finite() && total > 0.0) {
+        return Err(Error::invalid("mass", format!("the total vertex weight {total} must be finite and positive")));
+    }
+    let unit = Laplacian { w: lap.w.clone(), mass: lap.mass.iter().map(|a| a / total).collect(), kind: lap.kind };
+    let sqrt_m: Vec<f64> = unit.mass.iter().map(|a| a.sqrt()).collect();
+    let (mut theta_lambda, mut u, mut info) = if n <= opts.dense_below {
+        dense_eigen(&unit, &sqrt_m, k)?
     } else {
-        lanczos::lanczos(lap, &sqrt_m, opts, progress)?
+        lanczos::lanczos(&unit, &sqrt_m, opts, progress)?
     };
+    drop(unit);
+    theta_lambda.iter_mut().for_each(|l| *l /= total);
+    info.shift /= total;
+    let sqrt_m: Vec<f64> = lap.mass.iter().map(|a| a.sqrt()).collect();
     // φ = A^{-1/2} u, then a deterministic sign.
     for j in 0..k {
         let col = u.col_as_slice_mut(j);
