@@ -224,7 +224,16 @@ pub fn build_laplacian(shape: &Shape, choice: LaplacianChoice) -> Result<(Laplac
         (LaplacianChoice::Auto, s) => {
             // Small clouds: as many neighbours as there are other points.
             let pts = points3(s).expect("3-D points");
-            let k = DEFAULT_NEIGHBOURS.min(pts.len().saturating_sub(1));
+            if pts.len() < 4 {
+                return Err(Error::invalid(
+                    "point set",
+                    format!(
+                        "it has {} point(s); the point-cloud Laplacian needs at least 4 points (3 neighbours of each)",
+                        pts.len()
+                    ),
+                ));
+            }
+            let k = DEFAULT_NEIGHBOURS.min(pts.len() - 1);
             cloud(&pts, k)
         }
         (LaplacianChoice::Cloud { k }, s) => match points3(s) {
@@ -238,5 +247,20 @@ pub fn build_laplacian(shape: &Shape, choice: LaplacianChoice) -> Result<(Laplac
             )),
         },
         (LaplacianChoice::Knn(o), s) => Ok((laplacian::knn_graph(&s.to_point_set(), &o)?, None)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shape::PointSet;
+
+    #[test]
+    fn clouds_of_fewer_than_four_points_say_so() {
+        for n in 1..4 {
+            let p = Shape::Points(PointSet::new(n, 3, (0..3 * n).map(|i| i as f64 * 0.37).collect()).unwrap());
+            let e = build_laplacian(&p, LaplacianChoice::Auto).unwrap_err().to_string();
+            assert!(e.contains("at least 4 points") && !e.contains("K <"), "{e}");
+        }
     }
 }

@@ -71,6 +71,26 @@ impl SpectralOptions {
             dense_below: 1000,
         }
     }
+
+    /// Checks the tolerances: `max_residual` finite and > 0, `tol` finite, > 0 and ≤
+    /// `max_residual` (a looser stopping rule than the acceptance threshold would stop with
+    /// pairs the check then rejects, or, from the cache, serve any basis). Errors:
+    /// [`Error::Invalid`] naming `tol` or `max_residual`.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.max_residual.is_finite() && self.max_residual > 0.0) {
+            return Err(Error::invalid("max_residual", format!("must be finite and > 0, got {:e}", self.max_residual)));
+        }
+        if !(self.tol.is_finite() && self.tol > 0.0 && self.tol <= self.max_residual) {
+            return Err(Error::invalid(
+                "tol",
+                format!(
+                    "the eigensolver's tolerance must be in (0, {:e}] (the residual every pair is checked against), got {:e}",
+                    self.max_residual, self.tol
+                ),
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// A truncated Laplacian eigenbasis.
@@ -152,9 +172,7 @@ pub fn eigen_basis(lap: &Laplacian, opts: &SpectralOptions, progress: Option<Pro
     if let Some(p) = lap.w.val().iter().position(|v| !v.is_finite()) {
         return Err(Error::invalid("W", format!("entry {p} of the stiffness matrix is not finite")));
     }
-    if !(opts.tol > 0.0 && opts.max_residual > 0.0) {
-        return Err(Error::invalid("tol", "tolerances must be positive"));
-    }
+    opts.validate()?;
     // The solver works on the problem of the shape scaled to unit area (A / area_total): W is
     // dimensionless (cotangent weights) or unchanged, so every number the solvers see is the same
     // whatever the shape's units (faer's dense and tridiagonal eigensolvers have absolute
@@ -214,6 +232,7 @@ pub fn eigen_basis_cached(
     cache: Option<&BasisCache>,
     progress: Option<Progress>,
 ) -> Result<(Basis, Option<SolveInfo>)> {
+    opts.validate()?;
     let key = cache.map(|_| BasisCache::key(lap));
     if let (Some(c), Some(key)) = (cache, &key) {
         if let Some(b) = c.get(key, lap.n(), opts.k, opts.tol) {
@@ -323,6 +342,25 @@ mod tests {
 
     fn solve(lap: &Laplacian, k: usize) -> Basis {
         eigen_basis(lap, &SpectralOptions::new(k), None).unwrap().0
+    }
+
+    #[test]
+    fn a_tolerance_looser_than_the_acceptance_check_names_tol() {
+        let lap = cotangent(&icosphere(1)).unwrap();
+        let cache = BasisCache::new(std::env::temp_dir().join(format!("funcorr-tol-{}", std::process::id())));
+        for tol in [1e300, 1e-3, f64::NAN, f64::INFINITY, 0.0, -1.0] {
+            let o = SpectralOptions { tol, ..SpectralOptions::new(5) };
+            for r in
+                [eigen_basis(&lap, &o, None).map(|_| ()), eigen_basis_cached(&lap, &o, Some(&cache), None).map(|_| ())]
+            {
+                match r {
+                    Err(Error::Invalid { what, .. }) => assert_eq!(what, "tol"),
+                    other => panic!("tol {tol}: {other:?}"),
+                }
+            }
+        }
+        assert!(SpectralOptions { tol: 1e-6, ..SpectralOptions::new(5) }.validate().is_ok());
+        let _ = std::fs::remove_dir_all(cache.dir());
     }
 
     /// Φᵀ A Φ = I to `tol`.
