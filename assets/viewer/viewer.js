@@ -93,7 +93,7 @@
     s.object.scale.setScalar(1 / R);
     s.object.position.set(-c.x / R, -c.y / R, -c.z / R);
     s.object.updateMatrixWorld(true);
-    s.marker.scale.setScalar(0.018);
+    s.marker.scale.setScalar(0.02);
     if (!s.mesh) {
       // Point size: about the mean spacing of the points (area of the bounding sphere / n).
       const r = s.geom.boundingSphere.radius / R;
@@ -111,7 +111,7 @@
   controls.addEventListener('change', () => requestRender());
 
   // ---- state, colourings --------------------------------------------------------------------
-  const state = { mode: 'transfer', show: 'both', shading: 'smooth', wireframe: false, selected: null };
+  const state = { mode: meta.start || 'transfer', show: 'both', shading: 'smooth', wireframe: false, selected: null };
   const modeById = new Map(meta.modes.map((m) => [m.id, m]));
 
   function colorAttr(s, k) {

@@ -241,6 +241,8 @@ pub struct Viewer<'a> {
     pub fields: Vec<Field<'a>>,
     /// More lines for the caption.
     pub notes: Vec<String>,
+    /// The colouring shown first: `"error"` or the name of a field (default: colour transfer).
+    pub start: Option<String>,
 }
 
 impl<'a> Viewer<'a> {
@@ -258,6 +260,7 @@ impl<'a> Viewer<'a> {
             errors: None,
             fields: Vec::new(),
             notes: Vec::new(),
+            start: None,
         }
     }
 
@@ -280,6 +283,12 @@ impl<'a> Viewer<'a> {
         if let Some(map) = self.map_yx {
             let m = m.ok_or_else(|| need_y("map_yx"))?;
             check_map(map, m, n, "map_yx", "Y", "X")?;
+        }
+        if let Some(start) = &self.start {
+            let known = (start == "error" && self.errors.is_some()) || self.fields.iter().any(|f| &f.name == start);
+            if !known {
+                return Err(Error::invalid("start", format!("{start:?} is neither `error` (with errors) nor a field")));
+            }
         }
         if let Some(e) = &self.errors {
             if e.values.len() != n || e.measured.len() != n {
@@ -429,8 +438,14 @@ impl<'a> Viewer<'a> {
             }));
             fields_meta.push(json!({"id": id, "side": f.side.key(), "values": add(f32s(f.values)), "absmax": absmax}));
         }
+        let start = match self.start.as_deref() {
+            Some("error") => "error".to_string(),
+            Some(name) => format!("field{}", self.fields.iter().position(|f| f.name == name).unwrap_or(0)),
+            None => "transfer".to_string(),
+        };
         let meta = json!({
             "title": self.title,
+            "start": start,
             "method": self.method,
             "x": x_meta,
             "y": y_meta,

@@ -358,6 +358,29 @@ fn index_html(report: &Report, ds: &Dataset, title: &str, links: &BTreeMap<usize
     s
 }
 
+/// The `index.html` of `funcorr reproduce benchmark`: the figure (`image`, a file beside the
+/// page), the per-method summaries of each setting (e.g. `scarce`, `rich`; `dashed` unused here)
+/// and links to each setting's own `index.html`.
+pub fn settings_index_html(title: &str, settings: &[(&str, bool, &[MethodSummary])], image: &str) -> String {
+    let mut s = format!(
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>{t}</title>\n\
+         <style>{REPORT_CSS}</style>\n</head>\n<body>\n<h1>{t}</h1>\n<p><img src=\"{img}\" alt=\"cumulative error curves\" \
+         style=\"max-width:100%\"></p>\n",
+        t = escape(title),
+        img = escape(&url_path(image))
+    );
+    for (name, _, summaries) in settings {
+        s += &format!(
+            "<h2>{n} data — <a href=\"{href}\">pairs and viewers</a></h2>\n",
+            n = escape(name),
+            href = escape(&url_path(&format!("{name}/index.html")))
+        );
+        s += &format!("<pre>{}</pre>\n", escape(&crate::benchmark::table_of(summaries)));
+    }
+    s += "</body>\n</html>\n";
+    s
+}
+
 /// The `funcorr view` command line that makes the page of a run without one (run from the
 /// report's directory).
 fn view_command(ds: &Dataset, run: &PairRun, symmetric: bool) -> String {
