@@ -601,9 +601,8 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
             )
         })?;
         let title = format!("{setting} data ({data}), {} pairs", pairs.len());
-        written.extend(
-            write_report(&report, &ds, &staged.join(setting), &title, pages).map_err(|e| staged.attribute(e))?,
-        );
+        written
+            .extend(write_report(&report, &ds, &staged.join(setting), &title, pages).map_err(|e| staged.attribute(e))?);
         table += &format!("## {title}\n\n{}\n", report.table());
         all.push((setting, setting == "scarce", report.summaries()));
     }

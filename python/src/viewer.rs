@@ -27,12 +27,14 @@ type FieldArg = (String, Side, Vec<f64>, Option<usize>);
 
 fn fields_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<FieldArg>> {
     let Some(list) = obj.filter(|o| !o.is_none()) else { return Ok(vec![]) };
-    let list = list.cast::<PyList>().map_err(|_| value_error("fields", "expected a list of (name, side, values, mark)"))?;
+    let list =
+        list.cast::<PyList>().map_err(|_| value_error("fields", "expected a list of (name, side, values, mark)"))?;
     let mut out = Vec::new();
     for (k, item) in list.iter().enumerate() {
-        let (name, side, values, mark): (String, String, Bound<'_, PyAny>, Option<usize>) = item
-            .extract()
-            .map_err(|_| value_error("fields", format!("item {k}: expected (name, 'x' or 'y', values, mark or None)")))?;
+        let (name, side, values, mark): (String, String, Bound<'_, PyAny>, Option<usize>) =
+            item.extract().map_err(|_| {
+                value_error("fields", format!("item {k}: expected (name, 'x' or 'y', values, mark or None)"))
+            })?;
         let side = match side.as_str() {
             "x" | "X" => Side::X,
             "y" | "Y" => Side::Y,
