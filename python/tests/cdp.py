@@ -174,8 +174,25 @@ class Browser:
         return reply.get("result", {})
 
     # ---- page helpers ------------------------------------------------------------------------
-    def navigate(self, url: str):
+    def navigate(self, url: str, timeout: Optional[float] = None):
+        """Opens ``url`` and waits for its load event."""
+        with self._cond:
+            seen = len(self.events)
         self.send("Page.navigate", {"url": url})
+        self.wait_event("Page.loadEventFired", seen, timeout)
+
+    def wait_event(self, method: str, after: int = 0, timeout: Optional[float] = None) -> dict:
+        """The first event ``method`` among the events from index ``after`` on (waits for it)."""
+        deadline = time.monotonic() + (timeout or self.timeout)
+        with self._cond:
+            while True:
+                for e in self.events[after:]:
+                    if e.get("method") == method:
+                        return e
+                left = deadline - time.monotonic()
+                if left <= 0 or self.proc.poll() is not None:
+                    raise CdpError(f"no {method} within {timeout or self.timeout} s")
+                self._cond.wait(min(left, 0.5))
 
     def eval(self, expression: str, timeout: Optional[float] = None) -> Any:
         """Evaluates JavaScript in the page (promises awaited) and returns its value (JSON)."""

@@ -238,3 +238,31 @@ def test_save_png_and_no_network_request(browser, page):
     failed = browser.eval("fetch('http://127.0.0.1:9/probe').then(() => false, () => true)")
     assert failed and browser.blocked == ["http://127.0.0.1:9/probe"]
     assert browser.exceptions() == []
+
+
+def test_the_notebook_view_renders_inside_its_iframe(chromium, default_match, tmp_path):
+    """``MatchResult._repr_html_`` (an ``<iframe srcdoc>``, sandboxed) shows the viewer."""
+    notebook = tmp_path / "notebook.html"
+    notebook.write_text(
+        "<!DOCTYPE html><html><body style='margin:0'><p>cell output:</p>" + default_match._repr_html_() + "</body></html>",
+        encoding="utf-8",
+    )
+    b = Browser(chromium, 1000, 700)
+    try:
+        url = notebook.resolve().as_uri()
+        b.allowed = lambda u: u == url or u.startswith("about:")
+        b.navigate(url)
+        deadline = __import__("time").monotonic() + 20
+        while True:
+            img = b.screenshot()
+            box = b.eval("(r => [r.top, r.bottom, r.left, r.right])(document.querySelector('iframe').getBoundingClientRect())")
+            top, bottom, left, right = (int(v) for v in box)
+            inner = img[top + 120:bottom - 40, left + 5:right - 5].reshape(-1, 3).astype(int)
+            coloured = ((inner.max(axis=1) - inner.min(axis=1)) > 40).mean()
+            if coloured > 0.02 or __import__("time").monotonic() > deadline:
+                break
+        assert coloured > 0.02, f"the iframe shows no coloured shapes ({coloured:.4f})"
+        assert b.blocked == [] and all(u == url or u.startswith("about:") for u in b.requests), b.requests
+        assert b.exceptions() == []
+    finally:
+        b.close()

@@ -14,6 +14,10 @@
 //! `ready` (a promise, resolved after the first frame), `pick(i, side)`, `set({...})`,
 //! `view(azimuth, elevation)`, `project(i, side)`, `errorAt(i)`, `bar(mode)`, `timeFrames(k)`,
 //! `snapshot()`.
+//!
+//! **Why one file (≈ 600 lines without tests).** The page's data (shapes, maps, colourings,
+//! errors, fields) is checked, encoded and described to the script in one pass over private
+//! helpers (blob list, metadata, base64); splitting it would spread one format over two files.
 
 use std::path::{Path, PathBuf};
 
