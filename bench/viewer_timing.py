@@ -41,7 +41,11 @@ def main():
     ap.add_argument("--out", default="/tmp/viewer-big")
     ap.add_argument("--frames", type=int, default=30)
     ap.add_argument("--geodesics", default="dijkstra", help="for the errors of --gt (exact, heat, dijkstra; none: no errors)")
+    ap.add_argument("--page", help="time this page instead of writing one")
     a = ap.parse_args()
+    if a.page:
+        print(json.dumps(measure(Path(a.page), a.frames, True), indent=1))
+        return
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     target = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target")) / "release"
@@ -69,7 +73,13 @@ def main():
     if a.geodesics != "none":
         args += ["--gt-source", data / "tr_reg_000.vts", "--gt-target", data / "tr_reg_001.vts", "--geodesics", a.geodesics]
     report["write_seconds"] = round(run(args), 2)
-    report["file_mb"] = round(page.stat().st_size / 1e6, 1)
+    report.update(measure(page, a.frames, a.geodesics != "none"))
+    print(json.dumps(report, indent=1))
+
+
+def measure(page: Path, n_frames: int, errors: bool) -> dict:
+    """Load and frame times of `page` in headless Chromium."""
+    report = {"file_mb": round(page.stat().st_size / 1e6, 1)}
     b = Browser(find_chromium(), 1400, 800, timeout=120)
     try:
         url = page.resolve().as_uri()
@@ -83,14 +93,17 @@ def main():
         )
         report["load_to_first_frame_s"] = round(time.perf_counter() - t, 2)
         report["first_frame_page_ms"] = round(ready)
-        frames = b.eval(f"window.funcorr.timeFrames({a.frames})", timeout=600)
+        frames = b.eval(f"window.funcorr.timeFrames({n_frames})", timeout=600)
         report["orbit_frame_ms"] = {k: round(frames[k], 1) for k in ("mean", "median", "max")}
+        frames = b.eval(f"window.funcorr.timeFrames({n_frames}, true)", timeout=600)
+        report["orbit_frame_ms_while_dragging"] = {k: round(frames[k], 1) for k in ("mean", "median", "max")}
+        report["preview"] = frames["preview"]
         t = time.perf_counter()
         b.eval("window.funcorr.pick(12345)", timeout=120)
         report["pick_s"] = round(time.perf_counter() - t, 2)
-        if a.geodesics != "none":
+        if errors:
             b.eval("window.funcorr.set({mode: 'error'})", timeout=120)
-            frames = b.eval(f"window.funcorr.timeFrames({a.frames})", timeout=600)
+            frames = b.eval(f"window.funcorr.timeFrames({n_frames})", timeout=600)
             report["orbit_frame_ms_error_map"] = round(frames["median"], 1)
         t = time.perf_counter()
         vertex = b.eval("(p => p.x)(window.funcorr.project(777))", timeout=120)
@@ -101,7 +114,7 @@ def main():
         del vertex
     finally:
         b.close()
-    print(json.dumps(report, indent=1))
+    return report
 
 
 if __name__ == "__main__":

@@ -42,7 +42,12 @@
   // ---- scene ------------------------------------------------------------------------------
   const canvas = $('view');
   const stage = $('stage');
-  const renderer = new THREE.WebGLRenderer({ canvas, antialias: true });
+  // Large pairs: no multisampling (a software renderer spends most of a frame on it), and a
+  // preview of about 60,000 points per shape drawn while the camera moves (level of detail).
+  const FACES = meta.x.faces + (meta.y ? meta.y.faces : 0);
+  const VERTICES = meta.x.n + (meta.y ? meta.y.n : 0);
+  const BIG = VERTICES > 600000;
+  const renderer = new THREE.WebGLRenderer({ canvas, antialias: FACES < 1000000 });
   renderer.setPixelRatio(window.devicePixelRatio || 1);
   renderer.setClearColor(0xffffff, 1);
   renderer.setScissorTest(true);
@@ -77,6 +82,19 @@
       s.object = new THREE.Points(geom, s.materials.points);
     }
     s.group.add(s.object);
+    if (BIG && mesh) {
+      const step = Math.ceil(s.n / 60000);
+      const idx = new Uint32Array(Math.ceil(s.n / step));
+      for (let k = 0; k < idx.length; k++) idx[k] = k * step;
+      s.proxyGeom = new THREE.BufferGeometry();
+      s.proxyGeom.setAttribute('position', geom.getAttribute('position'));
+      s.proxyGeom.setIndex(new THREE.BufferAttribute(idx, 1));
+      s.materials.proxy = new THREE.PointsMaterial({ vertexColors: true, size: 1, sizeAttenuation: true });
+      s.proxy = new THREE.Points(s.proxyGeom, s.materials.proxy);
+      s.proxy.visible = false;
+      s.group.add(s.proxy);
+      s.proxyCount = idx.length;
+    }
     s.marker = new THREE.Mesh(new THREE.SphereGeometry(1, 20, 14), new THREE.MeshBasicMaterial({ color: 0xff00ff }));
     s.marker.visible = false;
     s.group.add(s.marker);
@@ -94,10 +112,15 @@
     s.object.position.set(-c.x / R, -c.y / R, -c.z / R);
     s.object.updateMatrixWorld(true);
     s.marker.scale.setScalar(0.02);
+    if (s.proxy) {
+      s.proxy.scale.copy(s.object.scale);
+      s.proxy.position.copy(s.object.position);
+      s.materials.proxy.size = Math.max(0.004, 4.5 * (s.geom.boundingSphere.radius / R) / Math.sqrt(s.proxyCount));
+    }
     if (!s.mesh) {
       // Point size: about the mean spacing of the points (area of the bounding sphere / n).
       const r = s.geom.boundingSphere.radius / R;
-      s.materials.points.size = Math.max(0.004, 2.2 * r / Math.sqrt(s.n));
+      s.materials.points.size = Math.max(0.004, 3.2 * r / Math.sqrt(s.n));
     }
   }
 
@@ -109,6 +132,24 @@
   controls.update();
   controls.saveState();
   controls.addEventListener('change', () => requestRender());
+  // Level of detail: the point preview while the camera moves, the full meshes once it rests.
+  let lod = false, lodTimer = null;
+  function setLod(on) {
+    lod = on;
+    for (const s of shapes) {
+      if (!s.proxy) continue;
+      s.proxy.visible = on;
+      s.object.visible = !on;
+      if (s.wire) s.wire.visible = !on && state.wireframe;
+    }
+  }
+  if (BIG) {
+    controls.addEventListener('start', () => { clearTimeout(lodTimer); setLod(true); });
+    controls.addEventListener('end', () => {
+      clearTimeout(lodTimer);
+      lodTimer = setTimeout(() => { setLod(false); requestRender(); }, 200);
+    });
+  }
 
   // ---- state, colourings --------------------------------------------------------------------
   const state = { mode: meta.start || 'transfer', show: 'both', shading: 'smooth', wireframe: false, selected: null };
@@ -123,7 +164,10 @@
     for (const s of shapes) {
       const k = mode[s.side];
       const colored = k !== null && k !== undefined;
-      if (colored) s.geom.setAttribute('color', colorAttr(s, k));
+      if (colored) {
+        s.geom.setAttribute('color', colorAttr(s, k));
+        if (s.proxyGeom) s.proxyGeom.setAttribute('color', colorAttr(s, k));
+      }
       for (const mat of Object.values(s.materials)) {
         if (mat.vertexColors !== colored) { mat.vertexColors = colored; mat.needsUpdate = true; }
         mat.color.copy(colored ? new THREE.Color(1, 1, 1) : neutral);
@@ -144,7 +188,7 @@
         s.wire.scale.copy(s.object.scale);
         s.group.add(s.wire);
       }
-      if (s.wire) s.wire.visible = state.wireframe;
+      if (s.wire) s.wire.visible = state.wireframe && !lod;
     }
     requestRender();
   }
@@ -463,6 +507,8 @@
       const r = canvas.getBoundingClientRect();
       return { x: r.left + cx, y: r.top + cy, visible: !!hit && hit.vertex === i };
     },
+    /** Shows the point preview of a large pair (as while dragging) or the full meshes. */
+    preview(on) { setLod(!!on && BIG); return nextFrame().then(() => lod); },
     errorAt: (i) => (err ? err.values[i] : null),
     measuredAt: (i) => (err ? err.measured[i] === 1 : null),
     fieldAt: (id, i) => (fields.has(id) ? fields.get(id).data[i] : null),
@@ -471,8 +517,10 @@
     mapYX: (i) => (mapYX ? mapYX[i] : null),
     snapshot,
     state: () => ({ ...state }),
-    /** Orbits the camera through k frames, each finished on the GPU (readPixels): ms per frame. */
-    timeFrames(k = 30) {
+    /** Orbits the camera through k frames, each finished on the GPU (readPixels): ms per frame;
+     * with preview true, as while the user drags (the point preview of large pairs). */
+    timeFrames(k = 30, preview = false) {
+      setLod(preview && BIG);
       const gl = renderer.getContext();
       const px = new Uint8Array(4);
       const ms = [];
@@ -486,8 +534,10 @@
         ms.push(performance.now() - t);
       }
       controls.update();
+      setLod(false);
+      requestRender();
       const sorted = [...ms].sort((a, b) => a - b);
-      return { frames: k, mean: ms.reduce((a, b) => a + b, 0) / k, median: sorted[k >> 1], max: sorted[k - 1], ms };
+      return { frames: k, preview: preview && BIG, mean: ms.reduce((a, b) => a + b, 0) / k, median: sorted[k >> 1], max: sorted[k - 1], ms };
     },
   });
 })();
