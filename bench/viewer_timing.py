@@ -97,9 +97,9 @@ def measure(page: Path, n_frames: int, errors: bool) -> dict:
         report["orbit_frame_ms"] = {k: round(frames[k], 1) for k in ("mean", "median", "max")}
         frames = b.eval(f"window.funcorr.timeFrames({n_frames}, true)", timeout=600)
         report["orbit_frame_ms_while_dragging"] = {k: round(frames[k], 1) for k in ("mean", "median", "max")}
-        report["preview"] = frames["preview"]
+        report["preview"] = frames.get("preview", False)
         t = time.perf_counter()
-        b.eval("window.funcorr.pick(12345)", timeout=120)
+        b.eval("window.funcorr.pick(Math.floor(window.funcorr.meta.x.n / 2))", timeout=120)
         report["pick_s"] = round(time.perf_counter() - t, 2)
         if errors:
             b.eval("window.funcorr.set({mode: 'error'})", timeout=120)
