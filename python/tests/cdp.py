@@ -12,6 +12,7 @@ that were failed.
 from __future__ import annotations
 
 import base64
+import fcntl
 import json
 import os
 import shutil
@@ -50,9 +51,10 @@ class Browser:
         self.profile = tempfile.mkdtemp(prefix="funcorr-chromium-")
         to_child_r, to_child_w = os.pipe()
         from_child_r, from_child_w = os.pipe()
-        # High descriptors in the child, so that dup2 onto 3 and 4 cannot clobber one another.
-        hi_r = os.dup2(to_child_r, 100)
-        hi_w = os.dup2(from_child_w, 101)
+        # Copies at free descriptors ≥ 100, so that dup2 onto 3 and 4 in the child cannot clobber
+        # one of them.
+        hi_r = fcntl.fcntl(to_child_r, fcntl.F_DUPFD, 100)
+        hi_w = fcntl.fcntl(from_child_w, fcntl.F_DUPFD, 100)
 
         def child():
             os.dup2(hi_r, 3)
