@@ -1,12 +1,17 @@
 //! Library errors. Every error names what was wrong (file, line, parameter) and why.
+//!
+//! Messages quote untrusted text (tokens of a file, paths): control characters in it (a NUL
+//! byte, an escape sequence that would recolour or rewrite the terminal, a newline that would
+//! forge another line) are escaped when an error is displayed ([`escape`]), never printed raw.
 
-use std::path::PathBuf;
+use std::borrow::Cow;
+use std::path::{Path, PathBuf};
 
 /// The error type of every fallible funcorr function.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// The operating system refused to read or write a file.
-    #[error("{path}: {source}")]
+    #[error("{}: {}", escape_path(path), escape(&source.to_string()))]
     Io {
         /// The file that could not be read or written.
         path: PathBuf,
@@ -15,7 +20,7 @@ pub enum Error {
         source: std::io::Error,
     },
     /// A file's content is malformed.
-    #[error("{path}{}: {msg}", line.map(|l| format!(":{l}")).unwrap_or_default())]
+    #[error("{}{}: {}", escape_path(path), line.map(|l| format!(":{l}")).unwrap_or_default(), escape(msg))]
     Parse {
         /// The file being read.
         path: PathBuf,
@@ -25,7 +30,7 @@ pub enum Error {
         msg: String,
     },
     /// A parameter or an in-memory input is invalid (wrong size, out of range, NaN, ...).
-    #[error("invalid {what}: {msg}")]
+    #[error("invalid {}: {}", escape(what), escape(msg))]
     Invalid {
         /// The parameter or input concerned (e.g. `k`, `mesh`, `landmarks`).
         what: String,
@@ -33,7 +38,7 @@ pub enum Error {
         msg: String,
     },
     /// A numerical method failed (factorization, non-convergence, residual check).
-    #[error("numerical failure in {stage}: {msg}")]
+    #[error("numerical failure in {}: {}", escape(stage), escape(msg))]
     Numerical {
         /// The computation that failed (e.g. `eigensolver`).
         stage: String,
@@ -61,5 +66,48 @@ impl Error {
     /// Builds an [`Error::Io`].
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Error::Io { path: path.into(), source }
+    }
+}
+
+/// `text` with every control character escaped: `\0`, `\t`, `\n`, `\r` and `\u{1b}`-style
+/// escapes for the others (C0, DEL, C1), so that quoted input cannot inject bytes into a
+/// terminal or a log. Text without control characters is returned as is.
+pub fn escape(text: &str) -> Cow<'_, str> {
+    if !text.chars().any(char::is_control) {
+        return Cow::Borrowed(text);
+    }
+    let mut out = String::with_capacity(text.len() + 8);
+    for c in text.chars() {
+        match c {
+            '\0' => out.push_str("\\0"),
+            '\t' => out.push_str("\\t"),
+            '\n' => out.push_str("\\n"),
+            '\r' => out.push_str("\\r"),
+            c if c.is_control() => out.push_str(&format!("\\u{{{:x}}}", u32::from(c))),
+            c => out.push(c),
+        }
+    }
+    Cow::Owned(out)
+}
+
+/// A path for a message: lossy UTF-8 with control characters escaped (see [`escape`]).
+pub fn escape_path(path: &Path) -> String {
+    escape(&path.to_string_lossy()).into_owned()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn displayed_errors_never_carry_control_characters() {
+        assert_eq!(escape("plain ünïcode"), "plain ünïcode");
+        assert_eq!(escape("a\0b\x1b[31mc\nd\u{9b}"), "a\\0b\\u{1b}[31mc\\nd\\u{9b}");
+        let e = Error::parse("f\x07.off", Some(3), "found 'x\0y'");
+        assert_eq!(e.to_string(), "f\\u{7}.off:3: found 'x\\0y'");
+        let e = Error::invalid("data", "'\x1b]0;title\x07'");
+        assert!(!e.to_string().chars().any(char::is_control), "{e}");
+        let e = Error::io("dir\n/x", std::io::Error::other("disk\rfull"));
+        assert_eq!(e.to_string(), "dir\\n/x: disk\\rfull");
     }
 }

@@ -85,6 +85,24 @@ impl Laplacian {
         self.mass.len()
     }
 
+    /// Connected components of the graph of W (i ~ j when W_ij ≠ 0, i ≠ j): (count, label of
+    /// every vertex, length n, numbered 0.. in order of first appearance). The multiplicity of
+    /// the eigenvalue 0; for a mesh the components of its faces, for a point cloud those of its
+    /// local triangulations or kNN graph.
+    pub fn components(&self) -> (usize, Vec<u32>) {
+        let w = self.w.as_ref();
+        let (cp, ri, val) = (w.symbolic().col_ptr(), w.symbolic().row_idx(), w.val());
+        let mut uf = crate::shape::UnionFind::new(self.n());
+        for j in 0..self.n() {
+            for p in cp[j]..cp[j + 1] {
+                if ri[p] != j && val[p] != 0.0 {
+                    uf.union(ri[p] as u32, j as u32);
+                }
+            }
+        }
+        uf.labels()
+    }
+
     /// y = W x (x, y of length n).
     pub fn apply_w(&self, x: &[f64]) -> Vec<f64> {
         let w = self.w.as_ref();
@@ -346,6 +364,14 @@ pub fn knn_graph(points: &PointSet, opts: &KnnOptions) -> Result<Laplacian> {
 mod tests {
     use super::*;
     use crate::shape::tests::square;
+
+    #[test]
+    fn components_of_the_graph_of_w() {
+        let two = graph(5, &[(0, 1, 1.0), (1, 2, 0.5), (3, 4, 2.0)], VertexWeights::Identity).unwrap();
+        assert_eq!(two.components(), (2, vec![0, 0, 0, 1, 1]));
+        let sq = cotangent(&square()).unwrap();
+        assert_eq!(sq.components().0, 1);
+    }
 
     fn dense(w: &SparseColMat<usize, f64>) -> Vec<Vec<f64>> {
         let n = w.nrows();

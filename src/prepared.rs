@@ -1,6 +1,17 @@
 //! A shape ready for matching: the shape, its Laplacian and eigenbasis, and the surface geometry
 //! the orientation-aware steps need (the mesh itself, or a point cloud's local triangulation),
 //! computed once and reused by every pair the shape takes part in.
+//!
+//! **Units.** A prepared shape is the input shape *scaled to unit area* (the total vertex weight
+//! Σ A = 1): its Laplacian's mass, its basis (λ · area, φ · √area) and its surface geometry
+//! (positions / √area) are those of the scaled shape, and `area` keeps the input's total vertex
+//! weight (units² for meshes and clouds). Every step of matching then sees the same numbers
+//! whatever the units of the two inputs (metres, millimetres, or one of each): the functional
+//! maps between two isometric shapes are orthonormal, the eigenvalues of both sides are
+//! comparable, descriptor times and energies, sample spacings and search radii are relative to
+//! the shape. The eigenbasis cache is keyed by the input's Laplacian, so the cached bases are
+//! shared with `funcorr spectrum`. [`PreparedShape::input_basis`] gives the basis in the input's
+//! units.
 
 use std::sync::OnceLock;
 
@@ -43,16 +54,22 @@ pub enum Surface {
     Cloud(CloudSurface),
 }
 
-/// A shape with its Laplacian, its eigenbasis and (on demand) its surface geometry.
+/// A shape with its Laplacian, its eigenbasis and (on demand) its surface geometry, scaled to
+/// unit area (module docs, "Units").
 #[derive(Debug)]
 pub struct PreparedShape {
-    /// The shape as loaded.
+    /// The shape as loaded (input units).
     pub shape: Shape,
-    /// Its Laplacian (n × n).
+    /// Its Laplacian (n × n) at unit area: W as built, A / `area`.
     pub laplacian: Laplacian,
-    /// Its first k eigenpairs (Φ: n × k, Φᵀ A Φ = I).
+    /// Its first k eigenpairs at unit area (Φ: n × k, Φᵀ A Φ = I, Σ A = 1).
     pub basis: Basis,
+    /// Total vertex weight Σ A of the input (its area in units² for meshes and clouds).
+    pub area: f64,
+    /// The surface at unit area (positions / √area), when there is one.
     surface: Option<Surface>,
+    /// The mesh at unit area (for [`Surface::Mesh`]).
+    unit_mesh: Option<TriMesh>,
     gradients: OnceLock<Option<FaceGradients>>,
     normals: OnceLock<Option<Vec<[f64; 3]>>>,
 }
@@ -75,9 +92,60 @@ impl PreparedShape {
         Ok(Self::from_parts(shape, laplacian, basis, surface))
     }
 
-    /// Assembles a prepared shape from parts computed elsewhere (e.g. a basis read from a file).
-    pub fn from_parts(shape: Shape, laplacian: Laplacian, basis: Basis, surface: Option<Surface>) -> Self {
-        PreparedShape { shape, laplacian, basis, surface, gradients: OnceLock::new(), normals: OnceLock::new() }
+    /// Assembles a prepared shape from parts computed elsewhere in the input's units (e.g. a
+    /// basis read from a file) and scales all of them to unit area (module docs): Σ A of the
+    /// basis's mass is the area. A total weight that is not finite and positive is left as it
+    /// is (area 1): the Laplacian and eigensolver reject such weights before this point.
+    pub fn from_parts(shape: Shape, mut laplacian: Laplacian, mut basis: Basis, surface: Option<Surface>) -> Self {
+        let total: f64 = basis.mass.iter().sum();
+        let area = if total.is_finite() && total > 0.0 { total } else { 1.0 };
+        let mut unit_mesh = None;
+        let mut surface = surface;
+        if area != 1.0 {
+            let root = area.sqrt();
+            laplacian.mass.iter_mut().for_each(|a| *a /= area);
+            basis.mass.iter_mut().for_each(|a| *a /= area);
+            basis.eigenvalues.iter_mut().for_each(|l| *l *= area);
+            for j in 0..basis.eigenvectors.ncols() {
+                basis.eigenvectors.col_as_slice_mut(j).iter_mut().for_each(|v| *v *= root);
+            }
+            let shrink = |p: [f64; 3]| [p[0] / root, p[1] / root, p[2] / root];
+            match (&mut surface, &shape) {
+                (Some(Surface::Mesh), Shape::Mesh(m)) => unit_mesh = m.map_vertices(shrink).ok(),
+                (Some(Surface::Cloud(c)), _) => {
+                    if let Ok(soup) = c.soup.map_vertices(shrink) {
+                        c.soup = soup;
+                    }
+                }
+                _ => {}
+            }
+        } else if let (Some(Surface::Mesh), Shape::Mesh(m)) = (&surface, &shape) {
+            unit_mesh = Some(m.clone());
+        }
+        PreparedShape {
+            shape,
+            laplacian,
+            basis,
+            area,
+            surface,
+            unit_mesh,
+            gradients: OnceLock::new(),
+            normals: OnceLock::new(),
+        }
+    }
+
+    /// The basis in the input's units: λ / area, φ / √area, A · area (k eigenpairs, n × k; a
+    /// copy).
+    pub fn input_basis(&self) -> Basis {
+        let (area, root) = (self.area, self.area.sqrt());
+        Basis {
+            eigenvalues: self.basis.eigenvalues.iter().map(|l| l / area).collect(),
+            eigenvectors: faer::Mat::from_fn(self.basis.n(), self.basis.k(), |i, j| {
+                self.basis.eigenvectors[(i, j)] / root
+            }),
+            mass: self.basis.mass.iter().map(|a| a * area).collect(),
+            residuals: self.basis.residuals.clone(),
+        }
     }
 
     /// Number of vertices n.
@@ -85,17 +153,17 @@ impl PreparedShape {
         self.shape.n_vertices()
     }
 
-    /// The triangles of the surface: the mesh, or the point cloud's soup (None for abstract data
-    /// or a kNN-graph Laplacian of a cloud).
+    /// The triangles of the surface at unit area: the mesh, or the point cloud's soup (None for
+    /// abstract data or a kNN-graph Laplacian of a cloud).
     pub fn triangles(&self) -> Option<&TriMesh> {
-        match (&self.surface, &self.shape) {
-            (Some(Surface::Mesh), Shape::Mesh(m)) => Some(m),
-            (Some(Surface::Cloud(c)), _) => Some(&c.soup),
+        match &self.surface {
+            Some(Surface::Mesh) => self.unit_mesh.as_ref(),
+            Some(Surface::Cloud(c)) => Some(&c.soup),
             _ => None,
         }
     }
 
-    /// Vertex positions (n × 3) of meshes and 3-D point clouds.
+    /// Vertex positions (n × 3) of meshes and 3-D point clouds, at unit area.
     pub fn positions(&self) -> Option<&[[f64; 3]]> {
         self.triangles().map(|t| t.vertices())
     }
@@ -118,8 +186,8 @@ impl PreparedShape {
     /// oriented PCA normals for clouds.
     pub fn normals(&self) -> Option<&[[f64; 3]]> {
         self.normals
-            .get_or_init(|| match (&self.surface, &self.shape) {
-                (Some(Surface::Mesh), Shape::Mesh(m)) => Some(m.vertex_normals()),
+            .get_or_init(|| match (&self.surface, &self.unit_mesh) {
+                (Some(Surface::Mesh), Some(m)) => Some(m.vertex_normals()),
                 (Some(Surface::Cloud(c)), _) => Some(c.normals.clone()),
                 _ => None,
             })
@@ -156,7 +224,16 @@ pub fn build_laplacian(shape: &Shape, choice: LaplacianChoice) -> Result<(Laplac
         (LaplacianChoice::Auto, s) => {
             // Small clouds: as many neighbours as there are other points.
             let pts = points3(s).expect("3-D points");
-            let k = DEFAULT_NEIGHBOURS.min(pts.len().saturating_sub(1));
+            if pts.len() < 4 {
+                return Err(Error::invalid(
+                    "point set",
+                    format!(
+                        "it has {} point(s); the point-cloud Laplacian needs at least 4 points (3 neighbours of each)",
+                        pts.len()
+                    ),
+                ));
+            }
+            let k = DEFAULT_NEIGHBOURS.min(pts.len() - 1);
             cloud(&pts, k)
         }
         (LaplacianChoice::Cloud { k }, s) => match points3(s) {
@@ -170,5 +247,20 @@ pub fn build_laplacian(shape: &Shape, choice: LaplacianChoice) -> Result<(Laplac
             )),
         },
         (LaplacianChoice::Knn(o), s) => Ok((laplacian::knn_graph(&s.to_point_set(), &o)?, None)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shape::PointSet;
+
+    #[test]
+    fn clouds_of_fewer_than_four_points_say_so() {
+        for n in 1..4 {
+            let p = Shape::Points(PointSet::new(n, 3, (0..3 * n).map(|i| i as f64 * 0.37).collect()).unwrap());
+            let e = build_laplacian(&p, LaplacianChoice::Auto).unwrap_err().to_string();
+            assert!(e.contains("at least 4 points") && !e.contains("K <"), "{e}");
+        }
     }
 }

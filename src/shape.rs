@@ -7,6 +7,8 @@
 use std::path::Path;
 
 use crate::error::{Error, Result};
+
+mod topology;
 use crate::io::{self, MeshData};
 
 /// A triangle mesh: `n` vertices in R³ and triangles given by 0-based vertex indices.

@@ -32,17 +32,21 @@ pub(crate) struct LaplacianArgs {
     /// other point sets).
     #[arg(long, value_enum)]
     pub(crate) laplacian: Option<LaplacianChoice>,
-    /// Neighbours of the point-cloud Laplacian's local triangulations.
-    #[arg(long, default_value_t = funcorr::cloud::DEFAULT_NEIGHBOURS)]
-    pub(crate) cloud_neighbours: usize,
-    /// Number of neighbours K of the kNN graph.
-    #[arg(long = "knn", default_value_t = 10)]
-    pub(crate) knn_k: usize,
-    /// Vertex weights of the kNN graph Laplacian.
-    #[arg(long, value_enum, default_value = "identity")]
-    pub(crate) vertex_weights: WeightsChoice,
-    /// Fixed Gaussian bandwidth σ of the kNN weights, in coordinate units
-    /// (default: self-tuning, σᵢ = distance to the K-th neighbour).
+    /// Neighbours of the point-cloud Laplacian's local triangulations (default: 30, or n − 1
+    /// for a cloud of fewer points; only with the point-cloud Laplacian, else ignored with a
+    /// warning).
+    #[arg(long)]
+    pub(crate) cloud_neighbours: Option<usize>,
+    /// Number of neighbours K of the kNN graph (default: 10; only with the kNN Laplacian, else
+    /// ignored with a warning).
+    #[arg(long = "knn")]
+    pub(crate) knn_k: Option<usize>,
+    /// Vertex weights of the kNN graph Laplacian (default: identity; only with the kNN
+    /// Laplacian).
+    #[arg(long, value_enum)]
+    pub(crate) vertex_weights: Option<WeightsChoice>,
+    /// Fixed Gaussian bandwidth σ > 0 of the kNN weights, in coordinate units
+    /// (default: self-tuning, σᵢ = distance to the K-th neighbour; only with the kNN Laplacian).
     #[arg(long)]
     pub(crate) sigma: Option<f64>,
 }

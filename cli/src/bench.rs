@@ -208,6 +208,8 @@ pub(crate) fn bench(args: &BenchArgs) -> Result<()> {
     let ds = Dataset::open(&args.dataset)?;
     let pairs = select_pairs(&ds, args.pairs.as_deref(), args.limit)?;
     let pool = thread_pool(args.jobs)?;
+    // Checked writable before any work (published at the end, removed on failure).
+    let staged = StagedDir::create(&args.output)?;
     let report = pool.install(|| {
         run_benchmark(
             &ds,
@@ -229,7 +231,6 @@ pub(crate) fn bench(args: &BenchArgs) -> Result<()> {
             if report.symmetric { ", symmetric" } else { "" }
         )
     });
-    let staged = StagedDir::create(&args.output)?;
     let written = write_report(&report, &ds, staged.path(), &title, pages).map_err(|e| staged.attribute(e))?;
     outln!("{title} (hard error, {} geodesics; {:.1} s)\n", report.geodesics.name(), report.wall_seconds);
     outln!("{}", report.table());
@@ -435,6 +436,8 @@ fn sweep(a: &SterileArgs, what: Sweep) -> Result<()> {
     // Check the sweep before the (slow) setup.
     funcorr::experiments::sweep::sweep_jobs(&what, a.kprime).map_err(|e| flag_error(e, &what))?;
     let ds = Dataset::open(&a.dataset)?;
+    // Checked writable before the setup (published at the end, removed on failure).
+    let staged = StagedDir::create(&a.output)?;
     let prepare = |name: &str| {
         let t = Instant::now();
         let s = benchmark::prepare_shape(&ds, name, a.kprime, a.cache.cache().as_ref());
@@ -455,7 +458,6 @@ fn sweep(a: &SterileArgs, what: Sweep) -> Result<()> {
             t.elapsed().as_secs_f64()
         );
     }
-    let staged = StagedDir::create(&a.output)?;
     let mut progress = |r: &SweepRow| {
         if !a.quiet {
             let extra =

@@ -105,6 +105,15 @@ pub(crate) fn descriptors(args: &DescriptorArgs) -> Result<()> {
     use funcorr::descriptors::{self as desc, signatures};
     use funcorr::io::indices;
     let mut st = Stages { quiet: args.quiet, parts: vec![] };
+    // The counts of the kinds that use them, before any work.
+    let uses_count = matches!(args.kind, DescriptorKind::Hks | DescriptorKind::Wks | DescriptorKind::Localized);
+    let uses_times = matches!(args.kind, DescriptorKind::Hkm)
+        || (matches!(args.kind, DescriptorKind::Localized) && args.seeds.is_some());
+    for (flag, v, used) in [("--count", args.count, uses_count), ("--times", args.times, uses_times)] {
+        if used && !(1..=signatures::MAX_COUNT).contains(&v) {
+            return Err(Error::invalid(flag, format!("need 1 ≤ {flag} ≤ {}, got {v}", signatures::MAX_COUNT)));
+        }
+    }
     let shape = st.run("read", || Shape::load(&args.shape))?;
     let n = shape.n_vertices();
     let normalize = !args.no_normalize;
@@ -168,7 +177,11 @@ pub(crate) fn descriptors(args: &DescriptorArgs) -> Result<()> {
                 desc::localized(&base, &segs)
             }
             DescriptorKind::Matrix => {
-                desc::Descriptors::from_matrix(&funcorr::io::read_matrix(need(&args.matrix, "--matrix", "matrix")?)?, n)
+                let p = need(&args.matrix, "--matrix", "matrix")?;
+                desc::Descriptors::from_matrix(&funcorr::io::read_matrix(p)?, n).map_err(|e| match e {
+                    Error::Invalid { what, msg } => Error::parse(p, None, format!("invalid {what}: {msg}")),
+                    e => e,
+                })
             }
         }
     })?;

@@ -21,7 +21,8 @@ pub(crate) fn info(path: &Path, json: bool) -> Result<()> {
     } else {
         for (key, value) in facts {
             let text = match value {
-                serde_json::Value::String(s) => s.clone(),
+                // A path's control characters are escaped (JSON escapes its own).
+                serde_json::Value::String(s) => funcorr::error::escape(&s).into_owned(),
                 other => other.to_string(),
             };
             outln!("{:<22} {text}", key.replace('_', " "));
@@ -44,6 +45,9 @@ pub(crate) fn mesh_facts(m: &TriMesh) -> Vec<(&'static str, serde_json::Value)> 
         ("components", json!(components)),
         ("boundary_loops", json!(m.boundary_loops().len())),
         ("degenerate_faces", json!(m.degenerate_faces().len())),
+        ("duplicate_faces", json!(m.duplicate_faces().len())),
+        ("non_manifold_edges", json!(m.non_manifold_edges().len())),
+        ("inconsistently_oriented_edges", json!(m.inconsistently_oriented_edges().len())),
         ("unreferenced_vertices", json!(m.unreferenced_vertices().len())),
         ("mean_edge_length", json!(m.mean_edge_length())),
         ("bounding_box_min", json!(lo)),

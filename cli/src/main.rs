@@ -24,7 +24,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Print facts about a shape: vertices, faces, area, components, boundary loops,
-    /// degenerate faces.
+    /// degenerate and duplicate faces, non-manifold and inconsistently oriented edges.
     Info {
         /// Shape file: OFF, OBJ, PLY, XYZ/CSV/TXT/PTS point list, or NPY (n×3 points, n×d features).
         shape: PathBuf,

@@ -131,19 +131,14 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     let view = funcorr::viz::View::parse(&args.view)?;
     let size = parse_size(&args.size)?;
     let (basis_k, demand) = basis_demand(&args.pipe, &opts)?;
+    // The output directory is created (and checked writable) before any work; it is published at
+    // the end, or removed when the run fails.
+    let staged = funcorr::io::staged::StagedDir::create(&args.output)?;
     let x = st.run("read", || Shape::load(&args.x))?;
     let y = st.run("read", || Shape::load(&args.y))?;
     for (path, shape) in [(&args.x, &x), (&args.y, &y)] {
         if basis_k >= shape.n_vertices() {
-            return Err(Error::invalid(
-                demand.split(' ').next().filter(|w| w.starts_with('-')).unwrap_or("k"),
-                format!(
-                    "{demand} asks for {basis_k} eigenpairs per shape, but {} has only n = {} vertices (at most n − 1); \
-                     ask for fewer",
-                    path.display(),
-                    shape.n_vertices()
-                ),
-            ));
+            return Err(too_small(path, shape.n_vertices(), &args.pipe, &opts, basis_k, &demand));
         }
     }
     if let Some(&bad) = args.soft.iter().find(|&&i| i >= x.n_vertices()) {
@@ -156,18 +151,23 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
         || prepared_shape(y, &args.y, &args.lap, &args.cache, basis_k, &mut sty),
     );
     let (px, py) = (px?, py?);
+    for (path, p) in [(&args.x, &px), (&args.y, &py)] {
+        warn_components(path, p);
+    }
     st.parts.extend(stx.parts.into_iter().map(|s| format!("X {s}")));
     st.parts.extend(sty.parts.into_iter().map(|s| format!("Y {s}")));
     let (f, g) = st.run("data", || pair_data(&args.data, px.parts(), py.parts(), &args.seg))?;
     let r = funcorr::matching::run_prepared(&px, &py, &f, &g, &opts)?;
-    let (x, y, bx, by) = (&px.shape, &py.shape, &px.basis, &py.basis);
+    let (x, y) = (&px.shape, &py.shape);
+    // The soft maps read C (between the input bases) with the input bases.
+    let input_bases = (!args.soft.is_empty()).then(|| (px.input_basis(), py.input_basis()));
     for (name, secs) in &r.stages {
         st.note(format!("{name} {secs:.3} s"));
     }
     let stages = st.parts.clone();
     st.run("write", || {
         // Everything goes into a staging directory, published whole at the end (io::staged).
-        funcorr::io::staged::StagedDir::create(&args.output)?.write_with(|out| {
+        staged.write_with(|out| {
             write_map_files(out, &r.map_xy, args.one_based)?;
             funcorr::io::npy::write_npy_vec_u64(
                 &out.join("map_yx.npy"),
@@ -182,7 +182,7 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
                 write_mat_npy(&out.join("A.npy"), a)?;
                 write_mat_npy(&out.join("B.npy"), b)?;
             }
-            for &i in &args.soft {
+            for (&i, (bx, by)) in args.soft.iter().zip(std::iter::repeat(input_bases.as_ref()).flatten()) {
                 let t = funcorr::pointwise::soft_map_column(
                     bx.eigenvectors.as_ref(),
                     by.eigenvectors.as_ref(),
@@ -237,6 +237,33 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     st.note(format!("q {} | C {}×{}", f.q(), r.c.nrows(), r.c.ncols()));
     st.finish();
     Ok(())
+}
+
+/// Says on stderr when a shape has several connected components (of its faces, or of its
+/// Laplacian's graph for a point set), and what matching does with them.
+pub(crate) fn warn_components(path: &Path, p: &funcorr::PreparedShape) {
+    let (count, labels) = match &p.shape {
+        Shape::Mesh(m) => m.components(),
+        Shape::Points(_) => p.laplacian.components(),
+    };
+    if count < 2 {
+        return;
+    }
+    let mut sizes = vec![0usize; count];
+    for &l in &labels {
+        sizes[l as usize] += 1;
+    }
+    sizes.sort_unstable_by_key(|&s| std::cmp::Reverse(s));
+    let shown: Vec<String> = sizes.iter().take(5).map(|s| s.to_string()).collect();
+    let more = if count > 5 { format!(", … ({} more)", count - 5) } else { String::new() };
+    eprintln!(
+        "warning: {} has {count} connected components ({}{more} vertices): they are matched as one shape; \
+         the basis holds one constant function per component, and a vertex of one component may be mapped into \
+         any component of the other shape (remove the small ones, or match the components separately, if that \
+         is not what you want)",
+        funcorr::error::escape_path(path),
+        shown.join(", "),
+    );
 }
 
 /// map.txt (one vertex of Y per line, 0- or 1-based) and map.npy (0-based, u64).

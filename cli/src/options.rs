@@ -53,42 +53,114 @@ pub(crate) fn prepared_shape(
     k: usize,
     st: &mut Stages,
 ) -> Result<funcorr::PreparedShape> {
-    let (lap, surface) = st.run("laplacian", || {
-        funcorr::prepared::build_laplacian(&shape, laplacian_choice(lap_args)).map_err(laplacian_error(path))
-    })?;
+    let choice = laplacian_choice(lap_args, &shape, path)?;
+    let (lap, surface) =
+        st.run("laplacian", || funcorr::prepared::build_laplacian(&shape, choice).map_err(laplacian_error(path)))?;
     let c = cache.cache();
     let basis =
         st.run("eigenbasis", || spectral::eigen_basis_cached(&lap, &SpectralOptions::new(k), c.as_ref(), None))?.0;
     Ok(funcorr::PreparedShape::from_parts(shape, lap, basis, surface))
 }
 
-/// The library's Laplacian choice for the CLI's arguments.
-pub(crate) fn laplacian_choice(args: &LaplacianArgs) -> funcorr::prepared::LaplacianChoice {
+/// The library's Laplacian choice for the CLI's arguments and this shape (read from `path`).
+/// The kNN options (--knn, --vertex-weights, --sigma) shape the kNN graph, --cloud-neighbours
+/// the point-cloud Laplacian: given for a shape whose Laplacian is another one, they are
+/// ignored, and a warning says so. Errors: a --sigma that is not finite and > 0 (also when
+/// ignored).
+pub(crate) fn laplacian_choice(
+    args: &LaplacianArgs,
+    shape: &Shape,
+    path: &Path,
+) -> Result<funcorr::prepared::LaplacianChoice> {
     use funcorr::prepared::LaplacianChoice as L;
-    match args.laplacian {
-        None => L::Auto,
-        Some(LaplacianChoice::Cotan) => L::Cotangent,
-        Some(LaplacianChoice::Cloud) => L::Cloud { k: args.cloud_neighbours },
-        Some(LaplacianChoice::Knn) => L::Knn(KnnOptions {
-            k: args.knn_k,
-            vertex_weights: match args.vertex_weights {
-                WeightsChoice::Identity => VertexWeights::Identity,
-                WeightsChoice::Degree => VertexWeights::Degree,
-            },
-            bandwidth: args.sigma.map_or(Bandwidth::SelfTuning, Bandwidth::Fixed),
-        }),
+    if let Some(s) = args.sigma {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(Error::invalid("--sigma", format!("the kNN bandwidth σ must be finite and > 0, got {s}")));
+        }
     }
+    let effective = match (args.laplacian, shape) {
+        (Some(c), _) => c,
+        (None, Shape::Mesh(_)) => LaplacianChoice::Cotan,
+        (None, Shape::Points(p)) if p.dim() == 3 => LaplacianChoice::Cloud,
+        (None, Shape::Points(_)) => LaplacianChoice::Knn,
+    };
+    let mut ignored = Vec::new();
+    if !matches!(effective, LaplacianChoice::Knn) {
+        if let Some(k) = args.knn_k {
+            ignored.push(format!("--knn {k}"));
+        }
+        if let Some(w) = args.vertex_weights {
+            ignored.push(format!(
+                "--vertex-weights {}",
+                w.to_possible_value().map_or("?".into(), |v| v.get_name().to_string())
+            ));
+        }
+        if let Some(s) = args.sigma {
+            ignored.push(format!("--sigma {s}"));
+        }
+    }
+    if !matches!(effective, LaplacianChoice::Cloud) {
+        if let Some(k) = args.cloud_neighbours {
+            ignored.push(format!("--cloud-neighbours {k}"));
+        }
+    }
+    if !ignored.is_empty() {
+        let (what, applies) = match effective {
+            LaplacianChoice::Cotan => ("the cotangent Laplacian of its triangles", ""),
+            LaplacianChoice::Cloud => {
+                ("the point-cloud Laplacian", "; --knn, --vertex-weights and --sigma apply to --laplacian knn")
+            }
+            LaplacianChoice::Knn => ("the kNN graph Laplacian", "; --cloud-neighbours applies to --laplacian cloud"),
+        };
+        let applies = if applies.is_empty() { "; they apply to --laplacian knn (or cloud)" } else { applies };
+        eprintln!(
+            "warning: {} ignored for {}: its Laplacian is {what}{applies}",
+            ignored.join(", "),
+            funcorr::error::escape_path(path)
+        );
+    }
+    let knn = || {
+        let d = KnnOptions::default();
+        KnnOptions {
+            k: args.knn_k.unwrap_or(d.k),
+            vertex_weights: match args.vertex_weights {
+                None => d.vertex_weights,
+                Some(WeightsChoice::Identity) => VertexWeights::Identity,
+                Some(WeightsChoice::Degree) => VertexWeights::Degree,
+            },
+            bandwidth: args.sigma.map_or(d.bandwidth, Bandwidth::Fixed),
+        }
+    };
+    // Without --laplacian: the library's automatic choice (a cloud of fewer points than the
+    // default neighbours uses them all), unless an option of the chosen kind was given.
+    Ok(match (effective, args.laplacian.is_some()) {
+        (LaplacianChoice::Knn, _) => L::Knn(knn()),
+        (LaplacianChoice::Cotan, true) => L::Cotangent,
+        (LaplacianChoice::Cloud, true) => {
+            L::Cloud { k: args.cloud_neighbours.unwrap_or(funcorr::cloud::DEFAULT_NEIGHBOURS) }
+        }
+        (LaplacianChoice::Cloud, false) => match args.cloud_neighbours {
+            Some(k) => L::Cloud { k },
+            None => L::Auto,
+        },
+        (LaplacianChoice::Cotan, false) => L::Auto,
+    })
 }
 
 pub(crate) fn build_laplacian(shape: &Shape, path: &Path, args: &LaplacianArgs) -> Result<Laplacian> {
-    Ok(funcorr::prepared::build_laplacian(shape, laplacian_choice(args)).map_err(laplacian_error(path))?.0)
+    let choice = laplacian_choice(args, shape, path)?;
+    Ok(funcorr::prepared::build_laplacian(shape, choice).map_err(laplacian_error(path))?.0)
 }
 
-/// Names the option or the file in a Laplacian error: `--laplacian` for a bad choice, the shape's
-/// file for a shape without a Laplacian (zero area, vertices in no triangle, ...).
+/// Names the option or the file in a Laplacian error: `--laplacian` for a bad choice, the kNN
+/// and point-cloud options for theirs, the shape's file for a shape without a Laplacian (zero
+/// area, vertices in no triangle, too few points, ...).
 pub(crate) fn laplacian_error(path: &Path) -> impl Fn(Error) -> Error + '_ {
     move |e| match e {
         Error::Invalid { what, msg } if what == "laplacian" => Error::invalid("--laplacian", msg),
+        Error::Invalid { what, msg } if what == "sigma" => Error::invalid("--sigma", msg),
+        Error::Invalid { what, msg } if what == "knn" => Error::invalid("--knn", msg),
+        Error::Invalid { what, msg } if what == "neighbours" => Error::invalid("--cloud-neighbours", msg),
         Error::Invalid { what, msg } if what == "mesh" || what == "point set" => {
             Error::parse(path, None, format!("invalid {what}: {msg}"))
         }
@@ -127,6 +199,9 @@ pub(crate) fn pipeline_options(
         FormChoice::LowNorm => Form::LowNorm,
     };
     let method: Method = method.into();
+    if p.k == Some(0) {
+        return Err(Error::invalid("-k", "the functional map's size must be at least 1"));
+    }
     // The library's defaults for this method and data; the options given override them.
     let base = MatchOptions::for_method(method, rich);
     // The form's own default weights; --mu1 … --xi override them below.
@@ -298,12 +373,17 @@ pub(crate) fn pipeline_options(
     })
 }
 
-/// The eigenpairs per shape that `funcorr match` computes, and the option that asks for the
-/// most of them (e.g. "--zoomout-to (default 150)"), so that a shape with too few vertices gets
-/// an error naming the option to change. Errors when --kprime is given but smaller than what
-/// the other options need (the basis would silently be larger than asked).
-pub(crate) fn basis_demand(p: &PipelineArgs, opts: &funcorr::matching::MatchOptions) -> Result<(usize, String)> {
-    use funcorr::matching::{Method, Refine as R, DEFAULT_BASIS_SIZE};
+/// One demand on the basis size: how many eigenpairs, who asks (e.g. "--zoomout-to (default
+/// 150)") and the flag that changes it (None for a size no option sets).
+pub(crate) struct Demand {
+    pub(crate) size: usize,
+    pub(crate) who: String,
+    pub(crate) flag: Option<&'static str>,
+}
+
+/// Every demand of the options on the basis size (see [`basis_demand`]).
+fn demands(p: &PipelineArgs, opts: &funcorr::matching::MatchOptions) -> Vec<Demand> {
+    use funcorr::matching::{Method, Refine as R};
     let named = |given: bool, flag: &str, v: usize| {
         if given {
             format!("{flag} {v}")
@@ -311,25 +391,52 @@ pub(crate) fn basis_demand(p: &PipelineArgs, opts: &funcorr::matching::MatchOpti
             format!("{flag} (default {v})")
         }
     };
-    let mut parts: Vec<(usize, String)> = Vec::new();
+    let mut parts = Vec::new();
     match opts.method {
         Method::Completion => {
-            parts.push((opts.completion.k_prime, named(p.kprime.is_some(), "--kprime", opts.completion.k_prime)));
+            let kp = opts.completion.k_prime;
+            parts.push(Demand { size: kp, who: named(p.kprime.is_some(), "--kprime", kp), flag: Some("--kprime") });
         }
         Method::Axiomatic => {
             let a = &opts.axiomatic;
             let kmax = a.candidates.iter().copied().max().unwrap_or(0);
-            let flag = if p.candidates.is_some() { "--candidates" } else { "-k" };
-            parts.push((kmax, named(p.candidates.is_some() || p.k.is_some(), flag, kmax)));
-            parts.push((a.refine.k_final, named(p.zoomout_to.is_some(), "--zoomout-to", a.refine.k_final)));
-            parts.push((a.probe.k_final, format!("the size selection (ZoomOut to {})", a.probe.k_final)));
+            let list = a.candidates.iter().map(|c| c.to_string()).collect::<Vec<_>>().join(",");
+            let (who, flag) = match (&p.candidates, p.k) {
+                (Some(_), _) => (format!("--candidates {list}"), "--candidates"),
+                (None, Some(k)) => (format!("-k {k}"), "-k"),
+                (None, None) => (format!("--candidates (default {list})"), "--candidates"),
+            };
+            parts.push(Demand { size: kmax, who, flag: Some(flag) });
+            let z = a.refine.k_final;
+            parts.push(Demand {
+                size: z,
+                who: named(p.zoomout_to.is_some(), "--zoomout-to", z),
+                flag: Some("--zoomout-to"),
+            });
+            let probe = a.probe.k_final;
+            parts.push(Demand { size: probe, who: format!("the size selection (ZoomOut to {probe})"), flag: None });
         }
-        _ => parts.push((opts.k, named(p.k.is_some(), "-k", opts.k))),
+        _ => parts.push(Demand { size: opts.k, who: named(p.k.is_some(), "-k", opts.k), flag: Some("-k") }),
     }
     if opts.method != Method::Axiomatic && opts.refine == R::Zoomout {
-        parts.push((opts.zoomout_to, named(p.zoomout_to.is_some(), "--zoomout-to", opts.zoomout_to)));
+        let z = opts.zoomout_to;
+        parts.push(Demand {
+            size: z,
+            who: named(p.zoomout_to.is_some(), "--zoomout-to", z),
+            flag: Some("--zoomout-to"),
+        });
     }
-    let (need, who) = parts.iter().max_by_key(|(k, _)| *k).cloned().unwrap_or((0, "-k".into()));
+    parts
+}
+
+/// The eigenpairs per shape that `funcorr match` computes, and the option that asks for the
+/// most of them (e.g. "--zoomout-to (default 150)"), so that a shape with too few vertices gets
+/// an error naming the option to change. Errors when --kprime is given but smaller than what
+/// the other options need (the basis would silently be larger than asked).
+pub(crate) fn basis_demand(p: &PipelineArgs, opts: &funcorr::matching::MatchOptions) -> Result<(usize, String)> {
+    use funcorr::matching::{Method, DEFAULT_BASIS_SIZE};
+    let parts = demands(p, opts);
+    let (need, who) = parts.iter().max_by_key(|d| d.size).map(|d| (d.size, d.who.clone())).unwrap_or((0, "-k".into()));
     if opts.method == Method::Completion {
         return Ok((need.max(opts.basis_size()), who));
     }
@@ -345,6 +452,53 @@ pub(crate) fn basis_demand(p: &PipelineArgs, opts: &funcorr::matching::MatchOpti
         None if need >= DEFAULT_BASIS_SIZE => Ok((need, who)),
         None => Ok((DEFAULT_BASIS_SIZE, format!("--kprime (default {DEFAULT_BASIS_SIZE})"))),
     }
+}
+
+/// The error for a shape of `n` vertices (read from `path`) too small for the `basis_k`
+/// eigenpairs per shape that the options ask for (`basis_k ≥ n`): it names every option that
+/// asks for n or more and the values that fit, or, when a size no option sets is too large
+/// (the axiomatic method's size selection), another method that fits.
+pub(crate) fn too_small(
+    path: &Path,
+    n: usize,
+    p: &PipelineArgs,
+    opts: &funcorr::matching::MatchOptions,
+    basis_k: usize,
+    demand: &str,
+) -> Error {
+    let most = n.saturating_sub(1);
+    let mut over: Vec<Demand> = demands(p, opts).into_iter().filter(|d| d.size >= n).collect();
+    if basis_k >= n && opts.method != funcorr::matching::Method::Completion && !over.iter().any(|d| d.who == demand) {
+        over.insert(0, Demand { size: basis_k, who: demand.to_string(), flag: Some("--kprime") });
+    }
+    over.sort_by_key(|d| std::cmp::Reverse(d.size));
+    let names: Vec<&str> = over.iter().map(|d| d.who.as_str()).collect();
+    let file = funcorr::error::escape_path(path);
+    let head = format!(
+        "{file} has only n = {n} vertices, so at most {most} eigenpairs per shape, but {} ask{} for more",
+        names.join(", "),
+        if names.len() == 1 { "s" } else { "" }
+    );
+    if let Some(fixed) = over.iter().find(|d| d.flag.is_none()) {
+        let kp = most.min(funcorr::matching::DEFAULT_BASIS_SIZE);
+        let k = (kp / 2).clamp(1, 20);
+        return Error::invalid(
+            "--method",
+            format!(
+                "{head}; {} is not an option, so the axiomatic method needs shapes of more than {} vertices: \
+                 match this pair with another method, e.g. --method fmap -k {k} --kprime {kp} --zoomout-to {kp}",
+                fixed.who, fixed.size
+            ),
+        );
+    }
+    let mut flags: Vec<&str> = over.iter().filter_map(|d| d.flag).collect();
+    flags.dedup();
+    let fix: Vec<String> = flags.iter().map(|f| format!("{f} {most}")).collect();
+    let them = if fix.len() == 1 { "it" } else { "them" };
+    Error::invalid(
+        flags.first().copied().unwrap_or("-k"),
+        format!("{head}; lower {them} below {n}, e.g. {}", fix.join(" ")),
+    )
 }
 
 /// The completion optimizer's stopping rule on the point map from --map-check-every (0: off) and

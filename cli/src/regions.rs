@@ -48,6 +48,8 @@ pub(crate) struct RegionArgs {
 pub(crate) fn regions(args: &RegionArgs) -> Result<()> {
     use funcorr::descriptors::{mser, persistence as pers};
     let mut st = Stages { quiet: args.quiet, parts: vec![] };
+    // Checked writable before any work (published at the end, removed on failure).
+    let staged = funcorr::io::staged::StagedDir::create(&args.output)?;
     let x = st.run("read", || Shape::load(&args.x))?;
     let y = st.run("read", || Shape::load(&args.y))?;
     let (lx, bx) = shape_basis(&x, &args.x, &args.lap, &args.cache, args.k, None, &mut st)?;
@@ -76,7 +78,7 @@ pub(crate) fn regions(args: &RegionArgs) -> Result<()> {
         },
     })?;
     st.run("write", || {
-        funcorr::io::staged::StagedDir::create(&args.output)?.write_with(|out| {
+        staged.write_with(|out| {
             funcorr::io::npy::write_npy_matrix(&out.join("F.npy"), &f.to_dense())?;
             funcorr::io::npy::write_npy_matrix(&out.join("G.npy"), &g.to_dense())?;
             let list: Vec<serde_json::Value> = (0..f.q())

@@ -50,25 +50,24 @@ pub(crate) fn progress_bar(k: usize, quiet: bool) -> ProgressBar {
 
 pub(crate) fn spectrum(args: &SpectrumArgs) -> Result<()> {
     let mut st = Stages { quiet: args.quiet, parts: vec![] };
-    let shape = st.run("read", || Shape::load(&args.shape))?;
-    let lap = st.run("laplacian", || build_laplacian(&shape, &args.shape, &args.lap))?;
-    if let Some(p) = &args.save_laplacian {
-        st.run("save laplacian", || save_laplacian(p, &lap))?;
-    }
+    // Options first: a bad one fails before any work.
     let opts =
         SpectralOptions { tol: args.tol, block_size: args.block_size, seed: args.seed, ..SpectralOptions::new(args.k) };
     if args.block_size == Some(0) {
         return Err(Error::invalid("--block-size", "must be at least 1"));
+    }
+    opts.validate().map_err(spectral_flag)?;
+    let shape = st.run("read", || Shape::load(&args.shape))?;
+    let lap = st.run("laplacian", || build_laplacian(&shape, &args.shape, &args.lap))?;
+    if let Some(p) = &args.save_laplacian {
+        st.run("save laplacian", || save_laplacian(p, &lap))?;
     }
     let cache = args.cache.cache();
     let pb = progress_bar(args.k, args.quiet);
     let update = |done: usize, _k: usize| pb.set_position(done as u64);
     let t = Instant::now();
     let (basis, info) =
-        spectral::eigen_basis_cached(&lap, &opts, cache.as_ref(), Some(&update)).map_err(|e| match e {
-            Error::Invalid { what, msg } if what == "block_size" => Error::invalid("--block-size", msg),
-            e => e,
-        })?;
+        spectral::eigen_basis_cached(&lap, &opts, cache.as_ref(), Some(&update)).map_err(spectral_flag)?;
     pb.finish_and_clear();
     match info {
         Some(i) => st.note(format!(
@@ -94,6 +93,16 @@ pub(crate) fn spectrum(args: &SpectrumArgs) -> Result<()> {
     ));
     st.finish();
     Ok(())
+}
+
+/// The eigensolver's parameters as the flags of `funcorr spectrum`.
+fn spectral_flag(e: Error) -> Error {
+    match e {
+        Error::Invalid { what, msg } if what == "block_size" => Error::invalid("--block-size", msg),
+        Error::Invalid { what, msg } if what == "tol" => Error::invalid("--tol", msg),
+        Error::Invalid { what, msg } if what == "k" => Error::invalid("-k", msg),
+        e => e,
+    }
 }
 
 pub(crate) fn save_laplacian(path: &Path, lap: &Laplacian) -> Result<()> {

@@ -1424,3 +1424,386 @@ fn view_pages_from_a_match_directory_and_from_files() {
     assert!(!out.join("view.html").exists());
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// A closed torus of `nu × nv` vertices (two triangles per quad, consistently oriented).
+fn torus(nu: u32, nv: u32) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+    use std::f64::consts::TAU;
+    let vertices = (0..nu * nv)
+        .map(|i| {
+            let (u, v) = (TAU * f64::from(i / nv) / f64::from(nu), TAU * f64::from(i % nv) / f64::from(nv));
+            [(2.0 + v.cos()) * u.cos(), (2.0 + v.cos()) * u.sin(), v.sin()]
+        })
+        .collect();
+    let faces = (0..nu)
+        .flat_map(|i| {
+            (0..nv).flat_map(move |j| {
+                let (a, b) = (i * nv + j, ((i + 1) % nu) * nv + j);
+                let (c, e) = (((i + 1) % nu) * nv + (j + 1) % nv, i * nv + (j + 1) % nv);
+                [[a, b, c], [a, c, e]]
+            })
+        })
+        .collect();
+    (vertices, faces)
+}
+
+/// Runs the binary with `args` and extra environment, killing it after `secs` seconds: None when
+/// it had to be killed (it hung).
+fn run_for(args: &[&str], secs: u64) -> Option<Output> {
+    let mut child = Command::new(BIN)
+        .args(args)
+        .env("FUNCORR_CACHE_DIR", std::env::temp_dir().join("funcorr-cli-cache"))
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while start.elapsed().as_secs() < secs {
+        if child.try_wait().unwrap().is_some() {
+            return Some(child.wait_with_output().unwrap());
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    None
+}
+
+/// The fast `match` options of the reproductions: eq. (5), no refinement, small bases.
+const FAST: [&str; 10] = ["--method", "fmap", "--refine", "none", "-k", "20", "--kprime", "40", "--no-render", "-q"];
+
+fn mkfifo(p: &Path) {
+    let ok = Command::new("mkfifo").arg(p).status().unwrap().success();
+    assert!(ok, "mkfifo {}", p.display());
+}
+
+#[test]
+fn output_directories_cannot_be_turned_against_the_user() {
+    let d = tmp("hostile_out");
+    let (v, f) = torus(16, 10);
+    let s = write_off(&d, "S.off", v, f);
+    let ss = s.to_str().unwrap();
+    let matched = |o: &Path, secs: u64| {
+        let mut a = vec!["match", ss, ss, "-o", o.to_str().unwrap(), "--cache-dir"];
+        let cache = d.join("cache");
+        a.push(cache.to_str().unwrap());
+        a.extend(FAST);
+        run_for(&a, secs)
+    };
+    // A previous manifest naming a file under a symbolic link to a directory elsewhere: the file
+    // outside the output directory stays.
+    let (o, ext) = (d.join("o"), d.join("ext"));
+    std::fs::create_dir_all(&o).unwrap();
+    std::fs::create_dir_all(&ext).unwrap();
+    std::fs::write(ext.join("v.txt"), "x").unwrap();
+    std::os::unix::fs::symlink("../ext", o.join("sub")).unwrap();
+    std::fs::write(o.join("funcorr-manifest.json"), r#"{"files":["sub/v.txt"],"tool":"funcorr","version":"0.1.0"}"#)
+        .unwrap();
+    let r = matched(&o, 120).expect("match hung");
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert!(ext.join("v.txt").exists(), "a file outside the output directory was deleted");
+    assert!(o.join("map.txt").exists());
+    // The lock file is never followed: a link named .funcorr.lock creates nothing elsewhere.
+    let o2 = d.join("o2");
+    std::fs::create_dir_all(&o2).unwrap();
+    let anywhere = d.join("anywhere");
+    std::os::unix::fs::symlink(&anywhere, o2.join(".funcorr.lock")).unwrap();
+    let r = matched(&o2, 120).expect("match hung");
+    assert_fails(&r, ".funcorr.lock");
+    assert!(text(&r.stderr).contains("symbolic link"), "{}", text(&r.stderr));
+    assert!(std::fs::symlink_metadata(&anywhere).is_err(), "the lock followed a link out of the directory");
+    // A FIFO in place of the lock file: an error, not a hang, and no staging directory left.
+    let o3 = d.join("o3");
+    std::fs::create_dir_all(&o3).unwrap();
+    mkfifo(&o3.join(".funcorr.lock"));
+    let r = matched(&o3, 60).expect("match hung on a FIFO lock file");
+    assert_fails(&r, ".funcorr.lock");
+    assert!(text(&r.stderr).contains("FIFO"), "{}", text(&r.stderr));
+    assert_eq!(listing(&o3), [".funcorr.lock"], "left behind");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn an_unwritable_output_fails_before_any_computation() {
+    let d = tmp("unwritable");
+    let (v, f) = torus(16, 10);
+    let s = write_off(&d, "S.off", v, f);
+    let ss = s.to_str().unwrap();
+    std::fs::write(d.join("file"), "a file where a directory is needed").unwrap();
+    let (out, cache) = (d.join("file/out"), d.join("cache"));
+    let mut a = vec!["match", ss, ss, "-o", out.to_str().unwrap(), "--cache-dir", cache.to_str().unwrap()];
+    a.extend(FAST);
+    let r = run(&a);
+    assert_fails(&r, "file/out");
+    // Nothing was computed: no eigenbasis reached the cache.
+    assert!(!cache.exists() || listing(&cache).is_empty(), "the bases were computed first: {:?}", listing(&cache));
+    // The same for regions.
+    let r = run(&[
+        "regions",
+        ss,
+        ss,
+        "--kind",
+        "persistence",
+        "-o",
+        out.to_str().unwrap(),
+        "--cache-dir",
+        cache.to_str().unwrap(),
+    ]);
+    assert_fails(&r, "file/out");
+    assert!(!cache.exists() || listing(&cache).is_empty(), "regions computed first: {:?}", listing(&cache));
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn cache_entries_that_are_fifos_or_links_and_orphaned_temporaries() {
+    let d = tmp("hostile_cache");
+    let (v, f) = torus(16, 10);
+    let s = write_off(&d, "S.off", v, f);
+    let ss = s.to_str().unwrap();
+    let cache = d.join("cache");
+    let cs = cache.to_str().unwrap();
+    let first = run(&["spectrum", ss, "-k", "10", "--cache-dir", cs, "-q"]);
+    assert!(first.status.success(), "{}", text(&first.stderr));
+    let entry = cache.join(listing(&cache).pop().unwrap());
+    let name = entry.file_name().unwrap().to_str().unwrap().to_string();
+    // A FIFO in place of the entry: a warning and a recompute, not a hang.
+    std::fs::remove_file(&entry).unwrap();
+    mkfifo(&entry);
+    let r = run_for(&["spectrum", ss, "-k", "10", "--cache-dir", cs, "-q"], 60).expect("spectrum hung on a FIFO");
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert!(text(&r.stderr).contains(&name), "no warning naming the entry: {}", text(&r.stderr));
+    assert_eq!(text(&r.stdout), text(&first.stdout));
+    // A link in place of the entry is not followed (its target is not read as a basis).
+    std::fs::remove_file(&entry).unwrap();
+    let elsewhere = d.join("elsewhere.npz");
+    std::fs::copy(d.join("S.off"), &elsewhere).unwrap();
+    std::os::unix::fs::symlink(&elsewhere, &entry).unwrap();
+    let r = run(&["spectrum", ss, "-k", "10", "--cache-dir", cs, "-q"]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert!(text(&r.stderr).contains("symbolic link"), "{}", text(&r.stderr));
+    // Orphaned temporaries of killed writers (not modified for a day) are swept by the next write;
+    // a fresh one (a writer at work) stays.
+    let old = cache.join(format!(".{name}.999999-0.tmp"));
+    let fresh = cache.join(format!(".{name}.999999-1.tmp"));
+    for p in [&old, &fresh] {
+        std::fs::write(p, "partial").unwrap();
+    }
+    let day_ago = std::time::SystemTime::now() - std::time::Duration::from_secs(86_400);
+    std::fs::File::options().write(true).open(&old).unwrap().set_modified(day_ago).unwrap();
+    let r = run(&["spectrum", ss, "-k", "12", "--cache-dir", cs, "-q"]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert!(!old.exists(), "an orphaned temporary stayed: {:?}", listing(&cache));
+    assert!(fresh.exists(), "a fresh temporary was removed");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn a_full_disk_is_an_error_naming_the_file() {
+    let d = tmp("full_disk");
+    let (v, f) = torus(16, 10);
+    let s = write_off(&d, "S.off", v, f);
+    let (out, cache) = (d.join("b.npz"), d.join("cache"));
+    // Files may not grow beyond 8 KiB (SIGXFSZ ignored: writes fail with EFBIG, as on a full disk).
+    let limited = |args: &[&str]| {
+        Command::new("sh")
+            .arg("-c")
+            .arg("trap '' XFSZ; ulimit -f 16; exec \"$@\"")
+            .arg("sh")
+            .arg(BIN)
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let ss = s.to_str().unwrap();
+    let r = limited(&["spectrum", ss, "-k", "30", "--no-cache", "-o", out.to_str().unwrap(), "-q"]);
+    assert_fails(&r, "b.npz");
+    assert!(!text(&r.stderr).contains("ZipWriter"), "{}", text(&r.stderr));
+    assert!(!out.exists());
+    // The cache write fails too: a warning naming the entry, the run succeeds.
+    let r = limited(&["spectrum", ss, "-k", "30", "--cache-dir", cache.to_str().unwrap(), "-q"]);
+    let err = text(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(err.contains("warning: could not write the eigenbasis cache") && err.contains(".npz"), "{err}");
+    assert!(!err.contains("ZipWriter"), "{err}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn ignored_laplacian_options_are_said_and_nan_is_an_error() {
+    let d = tmp("ignored_options");
+    let cloud = d.join("cloud.xyz");
+    let (v, _) = torus(16, 10);
+    std::fs::write(&cloud, v.iter().map(|p| format!("{} {} {}\n", p[0], p[1], p[2])).collect::<String>()).unwrap();
+    let cs = cloud.to_str().unwrap();
+    let r = run(&["spectrum", cs, "-k", "5", "--knn", "7", "--sigma", "0.5", "--no-cache", "-q"]);
+    let err = text(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(
+        err.contains("warning") && err.contains("--knn") && err.contains("--sigma") && err.contains("ignored"),
+        "{err}"
+    );
+    assert!(err.contains("cloud.xyz"), "{err}");
+    // With the kNN Laplacian they are used: no warning.
+    let r = run(&["spectrum", cs, "-k", "5", "--laplacian", "knn", "--knn", "7", "--sigma", "0.5", "--no-cache", "-q"]);
+    assert!(r.status.success() && !text(&r.stderr).contains("warning"), "{}", text(&r.stderr));
+    for extra in [&[][..], &["--laplacian", "knn"][..]] {
+        let mut a = vec!["spectrum", cs, "-k", "5", "--sigma", "NaN", "--no-cache"];
+        a.extend(extra);
+        assert_fails(&run(&a), "--sigma");
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn info_reports_duplicate_faces_non_manifold_edges_and_orientation() {
+    let d = tmp("info_topology");
+    let (v, f) = torus(16, 10);
+    let facts = |name: &str, v: Vec<[f64; 3]>, f: Vec<[u32; 3]>| -> serde_json::Value {
+        let p = write_off(&d, name, v, f);
+        let out = run(&["info", p.to_str().unwrap(), "--json"]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let keys = ["duplicate_faces", "non_manifold_edges", "inconsistently_oriented_edges"];
+    let clean = facts("clean.off", v.clone(), f.clone());
+    for k in keys {
+        assert_eq!(clean[k], 0, "{k}: {clean}");
+    }
+    // Every face once more (reversed copies among them).
+    let mut dup = f.clone();
+    dup.extend(f.iter().take(250).copied());
+    dup.extend(f.iter().skip(70).take(250).map(|t| [t[0], t[2], t[1]]));
+    let j = facts("dup.off", v.clone(), dup);
+    assert_eq!(j["duplicate_faces"], 500, "{j}");
+    // Fins: a triangle on an interior edge, so that three triangles share it.
+    let mut fins_v = v.clone();
+    fins_v.push([0.0, 0.0, 5.0]);
+    let mut fins = f.clone();
+    fins.push([f[0][0], f[0][1], 160]);
+    let j = facts("fins.off", fins_v, fins);
+    assert_eq!(j["non_manifold_edges"], 1, "{j}");
+    assert_eq!(j["duplicate_faces"], 0, "{j}");
+    // One face turned over: its three edges are traversed the same way by both their faces.
+    let mut flipped = f.clone();
+    flipped[5] = [f[5][0], f[5][2], f[5][1]];
+    let j = facts("flipped.off", v, flipped);
+    assert_eq!(j["inconsistently_oriented_edges"], 3, "{j}");
+    let plain = text(&run(&["info", d.join("flipped.off").to_str().unwrap()]).stdout);
+    assert!(plain.contains("inconsistently oriented edges"), "{plain}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn match_warns_about_several_components() {
+    let d = tmp("components");
+    let (mut v, mut f) = torus(16, 10);
+    // A tiny tetrahedron far away.
+    let base = v.len() as u32;
+    v.extend([[50., 0., 0.], [50.1, 0., 0.], [50., 0.1, 0.], [50., 0., 0.1]]);
+    f.extend([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]].map(|t: [u32; 3]| t.map(|i| i + base)));
+    let s = write_off(&d, "two.off", v, f);
+    let ss = s.to_str().unwrap();
+    let o = d.join("o");
+    let mut a = vec!["match", ss, ss, "-o", o.to_str().unwrap(), "--no-cache"];
+    a.extend(FAST);
+    let r = run(&a);
+    let err = text(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(err.contains("warning") && err.contains("two.off") && err.contains("2 connected components"), "{err}");
+    assert!(err.contains("160") && err.contains("4 vertices"), "{err}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn messages_name_what_the_user_gave() {
+    let d = tmp("messages");
+    let (v, f) = torus(16, 10);
+    let s = write_off(&d, "S.off", v, f);
+    let ss = s.to_str().unwrap();
+    let o = d.join("o");
+    let os = o.to_str().unwrap();
+    // -k 0 names -k, for every method.
+    for m in ["axiomatic", "fmap"] {
+        let r = run(&["match", ss, ss, "-o", os, "-k", "0", "--method", m, "--no-cache"]);
+        assert_fails(&r, "-k");
+        assert!(!text(&r.stderr).contains("--candidates"), "{}", text(&r.stderr));
+    }
+    // An absurd tolerance names --tol.
+    assert_fails(&run(&["spectrum", ss, "-k", "10", "--tol", "1e300", "--no-cache"]), "--tol");
+    let faust = data("tr_reg_000.off");
+    assert_fails(&run(&["spectrum", faust.to_str().unwrap(), "-k", "30", "--tol", "1e300", "--no-cache"]), "--tol");
+    // Huge data values are not "zero everywhere".
+    for (name, scale) in [("big.csv", 1e200), ("mid.csv", 1e160), ("huge.csv", 1e300)] {
+        let csv: String = (0..160)
+            .map(|i| {
+                (0..5)
+                    .map(|j| format!("{:e}", scale * (0.1 * f64::from(i * (j + 1))).sin()))
+                    .collect::<Vec<_>>()
+                    .join(",")
+                    + "\n"
+            })
+            .collect();
+        std::fs::write(d.join(name), csv).unwrap();
+        let p = d.join(name);
+        let data = format!("matrix:{},{}", p.display(), p.display());
+        let mut a = vec!["match", ss, ss, "-o", os, "--no-cache", "--data", &data];
+        a.extend(FAST);
+        let r = run(&a);
+        assert_fails(&r, name);
+        let err = text(&r.stderr);
+        assert!(!err.contains("zero everywhere") && err.contains("rescale"), "{err}");
+    }
+    // Clouds of one or two points: no K the user never gave.
+    for (name, pts) in [("p1.xyz", "0 0 0\n"), ("p2.xyz", "0 0 0\n1 0 0\n")] {
+        let p = d.join(name);
+        std::fs::write(&p, pts).unwrap();
+        let r = run(&["spectrum", p.to_str().unwrap(), "-k", "1", "--no-cache"]);
+        assert_fails(&r, name);
+        let err = text(&r.stderr);
+        assert!(!err.contains("K <") && err.contains("at least 4 points"), "{err}");
+    }
+    // descriptors: a zero count names its option.
+    let seeds = d.join("seeds.txt");
+    std::fs::write(&seeds, "1\n").unwrap();
+    let dn = d.join("d.npy");
+    let ds = dn.to_str().unwrap();
+    let sd = seeds.to_str().unwrap();
+    let r = run(&["descriptors", ss, "--kind", "hkm", "--seeds", sd, "--times", "0", "-o", ds, "--no-cache"]);
+    assert_fails(&r, "--times");
+    assert!(!text(&r.stderr).contains("invalid count"), "{}", text(&r.stderr));
+    assert_fails(&run(&["descriptors", ss, "--kind", "hks", "--count", "0", "-o", ds, "--no-cache"]), "--count");
+    // Control characters from a file are escaped, never printed raw.
+    for (name, bytes) in [
+        ("nul.off", &b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 \0x2\n"[..]),
+        ("esc.xyz", &b"0 0 0\n1 0 0\x1b[31m\n"[..]),
+    ] {
+        let p = d.join(name);
+        std::fs::write(&p, bytes).unwrap();
+        let r = run(&["info", p.to_str().unwrap()]);
+        assert_fails(&r, name);
+        assert!(!r.stderr.iter().any(|&b| b == 0 || b == 0x1b), "raw control bytes: {:?}", text(&r.stderr));
+        assert!(text(&r.stderr).contains("\\0") || text(&r.stderr).contains("\\u{1b}"), "{}", text(&r.stderr));
+    }
+    // Shapes too small for the default pipeline: the error names the options to change and
+    // values that work (another method when no option of the default one fits).
+    for (nu, nv, needles) in [
+        (12, 10, &["--kprime (default 200)"][..]),
+        (10, 9, &["--kprime (default 200)", "--zoomout-to (default 110)"][..]),
+        (10, 6, &["--method fmap", "--kprime (default 200)", "--zoomout-to (default 110)", "size selection"][..]),
+    ] {
+        let (v, f) = torus(nu, nv);
+        let small = write_off(&d, &format!("T{}.off", nu * nv), v, f);
+        let sp = small.to_str().unwrap();
+        let r = run(&["match", sp, sp, "-o", os, "--no-cache", "--no-render"]);
+        assert_fails(&r, &format!("T{}.off", nu * nv));
+        let err = text(&r.stderr);
+        for n in needles {
+            assert!(err.contains(n), "{n}: {err}");
+        }
+        let advice = err.trim_end().rsplit_once("e.g. ").expect("a suggestion").1;
+        let mut a = vec!["match", sp, sp, "-o", os, "--no-cache", "--no-render", "-q"];
+        a.extend(advice.split_whitespace());
+        let r = run(&a);
+        assert!(r.status.success(), "the advice {advice:?} does not work: {}", text(&r.stderr));
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}

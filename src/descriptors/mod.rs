@@ -61,7 +61,10 @@ impl Descriptors {
     }
 
     /// A user-provided n × q matrix (e.g. from [`crate::io::read_matrix`]); columns are named
-    /// `column:0`, `column:1`, …. Errors when the row count is not n.
+    /// `column:0`, `column:1`, …. Errors when the row count is not n, when there are no columns,
+    /// and when a value lies beyond ±[`MAX_VALUE`] or a column's largest magnitude is below
+    /// [`MIN_VALUE`] without being 0 (where the squared norms of the solvers over- or
+    /// underflow: the data must be rescaled).
     pub fn from_matrix(m: &DenseMatrix, n: usize) -> Result<Self> {
         if m.rows != n {
             return Err(Error::invalid(
@@ -73,7 +76,32 @@ impl Descriptors {
             return Err(Error::invalid("data matrix", format!("it has {n} rows but no columns (no descriptor)")));
         }
         let values = Mat::from_fn(m.rows, m.cols, |i, j| m.data[i * m.cols + j]);
-        Descriptors::new(values, (0..m.cols).map(|j| format!("column:{j}")).collect())
+        let d = Descriptors::new(values, (0..m.cols).map(|j| format!("column:{j}")).collect())?;
+        for j in 0..d.q() {
+            let col = d.values.col_as_slice(j);
+            let (i, top) =
+                col.iter().enumerate().fold((0, 0.0f64), |b, (i, v)| if v.abs() > b.1 { (i, v.abs()) } else { b });
+            if top > MAX_VALUE {
+                return Err(Error::invalid(
+                    "data matrix",
+                    format!(
+                        "column {j} has the value {:e} at row {i}, beyond ±{MAX_VALUE:e} where squared norms overflow; \
+                         rescale the data",
+                        col[i]
+                    ),
+                ));
+            }
+            if top > 0.0 && top < MIN_VALUE {
+                return Err(Error::invalid(
+                    "data matrix",
+                    format!(
+                        "column {j} is at most {top:e} in magnitude, below {MIN_VALUE:e} where squared norms underflow; \
+                         rescale the data"
+                    ),
+                ));
+            }
+        }
+        Ok(d)
     }
 
     /// The values as a row-major n × q matrix, e.g. to write as `.npy`.
@@ -207,6 +235,14 @@ pub fn rich(
     Ok((side(bx, f_seg)?, side(by, g_seg)?))
 }
 
+/// Largest magnitude accepted in a user-provided data matrix ([`Descriptors::from_matrix`]):
+/// beyond it squared norms overflow (as [`crate::shape::MAX_COORDINATE`] for coordinates).
+pub const MAX_VALUE: f64 = 1e150;
+
+/// Smallest non-zero largest magnitude of a column of a user-provided data matrix: below it
+/// squared norms underflow.
+pub const MIN_VALUE: f64 = 1e-150;
+
 /// Every column divided by its L2(A) norm √(fᵀ A f) (A the vertex weights, length n), as pyFM
 /// normalizes its descriptors: each then weighs the same in the functional-map energy whatever
 /// its magnitude. Errors: a size mismatch, or a column of zero norm (named).
@@ -214,11 +250,26 @@ pub fn normalized(d: &Descriptors, mass: &[f64]) -> Result<Descriptors> {
     if mass.len() != d.n() {
         return Err(Error::invalid("descriptors", format!("{} weights for {} vertices", mass.len(), d.n())));
     }
+    // Scaled by the column's largest magnitude, so that values near the ends of the f64 range
+    // (whose squares over- or underflow) still have their norm.
     let norms: Vec<f64> = (0..d.q())
-        .map(|j| d.values.col_as_slice(j).iter().zip(mass).map(|(v, a)| a * v * v).sum::<f64>().sqrt())
+        .map(|j| {
+            let col = d.values.col_as_slice(j);
+            let top = col.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            if top == 0.0 || !top.is_finite() {
+                return top;
+            }
+            top * col.iter().zip(mass).map(|(v, a)| a * (v / top) * (v / top)).sum::<f64>().sqrt()
+        })
         .collect();
     if let Some(j) = norms.iter().position(|&x| !(x > 0.0 && x.is_finite())) {
-        return Err(Error::invalid("descriptors", format!("column {j} ({}) is zero everywhere", d.names[j])));
+        let top = d.values.col_as_slice(j).iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let why = if top == 0.0 {
+            "is zero everywhere".to_string()
+        } else {
+            format!("has no L2 norm with these vertex weights (largest magnitude {top:e}, norm {:e})", norms[j])
+        };
+        return Err(Error::invalid("descriptors", format!("column {j} ({}) {why}", d.names[j])));
     }
     Descriptors::new(Mat::from_fn(d.n(), d.q(), |i, j| d.values[(i, j)] / norms[j]), d.names.clone())
 }
@@ -285,6 +336,28 @@ pub fn signed(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn data_near_the_ends_of_the_range_are_named_not_called_zero() {
+        let m = |v: f64| DenseMatrix { rows: 3, cols: 2, data: vec![v, 0.0, 2.0 * v, 0.0, -v, 1.0] };
+        for v in [1e160, 1e200, 1e300, -1e300] {
+            let e = Descriptors::from_matrix(&m(v), 3).unwrap_err().to_string();
+            assert!(e.contains("beyond") && e.contains("rescale") && !e.contains("zero everywhere"), "{e}");
+        }
+        let e = Descriptors::from_matrix(&m(1e-200), 3).unwrap_err().to_string();
+        assert!(e.contains("underflow") && e.contains("rescale"), "{e}");
+        assert!(Descriptors::from_matrix(&m(5e149), 3).is_ok());
+        assert!(Descriptors::from_matrix(&m(0.0), 3).is_ok(), "a zero column is data (normalized says so)");
+        // Normalization of large and tiny values: computed with a scaled norm, not overflowed.
+        for v in [1e200, 1e-200, 1e300] {
+            let d = Descriptors::new(Mat::from_fn(3, 1, |i, _| v * (i + 1) as f64), vec!["x".into()]).unwrap();
+            let n = normalized(&d, &[1.0, 1.0, 1.0]).unwrap();
+            let norm: f64 = n.values.col_as_slice(0).iter().map(|x| x * x).sum::<f64>().sqrt();
+            assert!((norm - 1.0).abs() < 1e-12, "{v}: {norm}");
+        }
+        let zero = Descriptors::new(Mat::zeros(3, 1), vec!["z".into()]).unwrap();
+        assert!(normalized(&zero, &[1.0; 3]).unwrap_err().to_string().contains("zero everywhere"));
+    }
 
     #[test]
     fn deltas_segments_localized() {

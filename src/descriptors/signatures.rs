@@ -47,9 +47,12 @@ fn nonzero(basis: &Basis) -> Result<(Vec<usize>, f64, f64)> {
     Ok((nz.clone(), basis.eigenvalues[nz[0]], lk))
 }
 
+/// Most functions one signature call computes (HKS times, WKS energies).
+pub const MAX_COUNT: usize = 100_000;
+
 fn check_count(count: usize) -> Result<()> {
-    if count == 0 || count > 100_000 {
-        return Err(Error::invalid("count", format!("need 1 ≤ N ≤ 100000 functions, got {count}")));
+    if count == 0 || count > MAX_COUNT {
+        return Err(Error::invalid("count", format!("need 1 ≤ N ≤ {MAX_COUNT} functions, got {count}")));
     }
     Ok(())
 }

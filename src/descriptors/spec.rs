@@ -276,8 +276,14 @@ impl PairDataSpec {
                 Ok((super::landmarks(x.n_vertices(), &a)?, super::landmarks(y.n_vertices(), &b)?))
             }
             PairDataSpec::Matrix(a, b) => {
-                let f = Descriptors::from_matrix(&crate::io::read_matrix(a)?, x.n_vertices())?;
-                let g = Descriptors::from_matrix(&crate::io::read_matrix(b)?, y.n_vertices())?;
+                // Errors about a matrix name its file.
+                let read = |p: &std::path::Path, n: usize| {
+                    Descriptors::from_matrix(&crate::io::read_matrix(p)?, n).map_err(|e| match e {
+                        Error::Invalid { what, msg } => Error::parse(p, None, format!("invalid {what}: {msg}")),
+                        e => e,
+                    })
+                };
+                let (f, g) = (read(a, x.n_vertices())?, read(b, y.n_vertices())?);
                 Ok((f, g))
             }
             PairDataSpec::DatasetSegments { .. } | PairDataSpec::GroundTruthLandmarks(_) => {

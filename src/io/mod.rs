@@ -10,6 +10,7 @@
 //! problems as [`Error::Parse`] (with a 1-based line number for text formats) saying what was
 //! expected and what was found.
 
+pub(crate) mod beneath;
 pub mod indices;
 pub mod npy;
 pub mod obj;
@@ -134,7 +135,7 @@ pub fn write_atomic(path: impl AsRef<Path>, contents: impl AsRef<[u8]>) -> Resul
 }
 
 /// Writes a file whole or not at all: through `f` into a new temporary file beside `path`
-/// (`.<name>.<pid>-<counter>.tmp`, created exclusively — `O_CREAT | O_EXCL`, so an
+/// (`.<name>.<pid>-<counter>.tmp`, created exclusively — `O_CREAT | O_EXCL | O_NOFOLLOW`, so an
 /// existing file or symbolic link of that name is never opened or followed), flushed and
 /// synced to disk, then renamed over `path`. Concurrent writers of the same `path` each use their
 /// own temporary file, so all succeed and the last rename wins with a complete file; on failure
@@ -146,7 +147,15 @@ pub(crate) fn write_file(path: &Path, f: impl FnOnce(&mut BufWriter<File>) -> Re
             // Unique among live writers; a stale file of a dead process with the same pid is
             // skipped by the retry with the next counter value.
             let tmp = temporary_beside(path, "tmp");
-            match std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
+            let mut options = std::fs::OpenOptions::new();
+            options.write(true).create_new(true);
+            #[cfg(unix)]
+            {
+                // O_EXCL already refuses an existing name, link or not; O_NOFOLLOW says so twice.
+                use std::os::unix::fs::OpenOptionsExt;
+                options.custom_flags(libc::O_NOFOLLOW);
+            }
+            match options.open(&tmp) {
                 Ok(file) => break (file, tmp),
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && attempt < 100 => attempt += 1,
                 // Errors name the file the user asked for, not our temporary.

@@ -286,8 +286,24 @@ pub fn write_npz(path: &Path, arrays: &[(&str, NpzArray)]) -> Result<()> {
         }
     }
     write_file(path, |w| {
-        let io = |e| Error::io(path, e);
-        let mut zip = ZipWriter::new(w);
+        // The zip writer finalizes itself when dropped and prints a failure of that to stderr
+        // ("ZipWriter drop failed"); behind a `Fuse` its writes after the first I/O error go
+        // nowhere, so the drop succeeds quietly and the first error is returned, naming `path`.
+        let mut fuse = Fuse { inner: w, failed: None, pos: 0, end: 0 };
+        let written = write_members(&mut fuse, arrays, path);
+        match fuse.failed.take() {
+            Some(e) => Err(Error::io(path, e)),
+            None => written,
+        }
+    })
+}
+
+/// The members of an `.npz` archive into `w` (see [`write_npz`]); the archive is finished
+/// explicitly, so that its errors are returned rather than printed by the writer's drop.
+fn write_members<W: Write + io::Seek>(w: W, arrays: &[(&str, NpzArray)], path: &Path) -> Result<()> {
+    let io = |e| Error::io(path, e);
+    let mut zip = ZipWriter::new(w);
+    {
         for (name, a) in arrays {
             let len = match a {
                 NpzArray::F64 { data, .. } => data.len(),
@@ -302,9 +318,74 @@ pub fn write_npz(path: &Path, arrays: &[(&str, NpzArray)]) -> Result<()> {
                 NpzArray::I64 { shape, data } => write_array(&mut zip, shape, data).map_err(io)?,
             }
         }
-        zip.finish().map_err(|e| zip_error(path, e))?;
-        Ok(())
-    })
+    }
+    zip.finish().map_err(|e| zip_error(path, e))?;
+    Ok(())
+}
+
+/// A writer that keeps the first I/O error of `inner` and, after it, accepts every write and
+/// seek without doing anything (tracking only the position), so that a writer which retries
+/// on drop (the zip writer) fails once, never twice.
+struct Fuse<W> {
+    inner: W,
+    failed: Option<io::Error>,
+    pos: u64,
+    end: u64,
+}
+
+impl<W> Fuse<W> {
+    fn fail(&mut self, e: io::Error) -> io::Error {
+        let copy = io::Error::new(e.kind(), e.to_string());
+        self.failed = Some(e);
+        copy
+    }
+}
+
+impl<W: Write> Write for Fuse<W> {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        if self.failed.is_some() {
+            self.pos += buf.len() as u64;
+            self.end = self.end.max(self.pos);
+            return Ok(buf.len());
+        }
+        match self.inner.write(buf) {
+            Ok(n) => {
+                self.pos += n as u64;
+                self.end = self.end.max(self.pos);
+                Ok(n)
+            }
+            Err(e) if e.kind() == ErrorKind::Interrupted => Err(e),
+            Err(e) => Err(self.fail(e)),
+        }
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        if self.failed.is_some() {
+            return Ok(());
+        }
+        self.inner.flush().map_err(|e| self.fail(e))
+    }
+}
+
+impl<W: io::Seek> io::Seek for Fuse<W> {
+    fn seek(&mut self, to: io::SeekFrom) -> io::Result<u64> {
+        if self.failed.is_some() {
+            let base = match to {
+                io::SeekFrom::Start(p) => Some(p),
+                io::SeekFrom::Current(d) => self.pos.checked_add_signed(d),
+                io::SeekFrom::End(d) => self.end.checked_add_signed(d),
+            };
+            self.pos = base.ok_or_else(|| io::Error::from(ErrorKind::InvalidInput))?;
+            return Ok(self.pos);
+        }
+        match self.inner.seek(to) {
+            Ok(p) => {
+                self.pos = p;
+                self.end = self.end.max(p);
+                Ok(p)
+            }
+            Err(e) => Err(self.fail(e)),
+        }
+    }
 }
 
 /// Reads every array of an uncompressed `.npz` archive, in archive order, as `(name, array)`
@@ -357,6 +438,54 @@ pub fn read_npz_from<R: std::io::Read + std::io::Seek>(r: R, len: u64, path: &Pa
 mod tests {
     use super::*;
     use crate::io::test_util::{assert_parse, noise, tmp_dir};
+
+    /// A writer of at most `room` bytes, then "no space left on device".
+    struct Full {
+        data: std::io::Cursor<Vec<u8>>,
+        room: usize,
+    }
+
+    impl Write for Full {
+        fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+            let left = self.room.saturating_sub(self.data.get_ref().len().max(self.data.position() as usize));
+            if left == 0 {
+                return Err(io::Error::new(ErrorKind::StorageFull, "No space left on device"));
+            }
+            self.data.write(&buf[..buf.len().min(left)])
+        }
+        fn flush(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+    }
+
+    impl io::Seek for Full {
+        fn seek(&mut self, to: io::SeekFrom) -> io::Result<u64> {
+            self.data.seek(to)
+        }
+    }
+
+    #[test]
+    fn a_full_disk_while_zipping_is_one_error_naming_the_file() {
+        let arrays = [("a", NpzArray::F64 { shape: vec![4000], data: vec![1.5; 4000] })];
+        let path = Path::new("out/b.npz");
+        for room in [0, 10, 100, 5000, 32_000, 32_100] {
+            let mut fuse = Fuse { inner: Full { data: Default::default(), room }, failed: None, pos: 0, end: 0 };
+            let r = write_members(&mut fuse, &arrays, path);
+            // The zip writer, dropped inside write_members, found nothing more to fail on.
+            let e = match fuse.failed.take() {
+                Some(e) => Error::io(path, e),
+                None => r.expect_err("the archive cannot fit"),
+            };
+            let text = e.to_string();
+            assert!(text.starts_with("out/b.npz: ") && text.contains("No space left"), "{room}: {text}");
+        }
+        let mut fuse = Fuse { inner: Full { data: Default::default(), room: 1 << 20 }, failed: None, pos: 0, end: 0 };
+        write_members(&mut fuse, &arrays, path).unwrap();
+        assert!(fuse.failed.is_none());
+        let bytes = fuse.inner.data.into_inner();
+        let back = read_npz_from(std::io::Cursor::new(&bytes), bytes.len() as u64, path).unwrap();
+        assert_eq!(back[0].1, arrays[0].1);
+    }
 
     /// A version-1 `.npy` file with the given header fields and raw data bytes.
     fn npy(descr: &str, fortran: bool, shape: &str, data: &[u8]) -> Vec<u8> {

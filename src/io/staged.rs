@@ -14,13 +14,24 @@
 //! 3. Hence: a directory with a manifest holds exactly the files it lists, all from one run;
 //!    no manifest means a publish is in progress or was interrupted. Files the user put in
 //!    `<dir>` themselves are never touched: only names listed in a funcorr manifest are deleted.
+//! 4. Nothing is deleted, renamed or opened outside `<dir>`: every step resolves one component
+//!    at a time below `<dir>` without following a symbolic link ([`super::beneath`]). A
+//!    manifest entry under a link is skipped; a link (or a file) in the way of an output's
+//!    directory is an error before anything changes; the lock file and the manifest are opened
+//!    only as regular files (never through a link, never blocking on a FIFO).
+//! 5. [`StagedDir::create`] runs first, before any computation: a directory that cannot be
+//!    created or written, or a lock file that is not a regular file, fails the run at once.
 
-use std::path::{Component, Path, PathBuf};
+use std::path::{Path, PathBuf};
 
+use super::beneath::{self, Dir, Kind};
 use crate::error::{Error, Result};
 
 /// Name of the manifest written last into a published output directory.
 pub const MANIFEST: &str = "funcorr-manifest.json";
+
+/// Name of the lock file publishers of one directory take turns on.
+const LOCK: &str = ".funcorr.lock";
 
 /// Upper bound on the bytes of a manifest that is read back (a hostile or damaged manifest
 /// larger than this is ignored rather than read).
@@ -28,29 +39,43 @@ const MAX_MANIFEST_BYTES: u64 = 64 << 20;
 
 /// An output directory being written: files go into [`StagedDir::path`] and appear in the
 /// target directory only when [`StagedDir::publish`] succeeds (see the module docs). Dropping
-/// it (published or not) removes the staging directory.
+/// it (published or not) removes the staging directory, and, when nothing was published, the
+/// target directory too if [`StagedDir::create`] made it and it is empty.
 #[derive(Debug)]
 pub struct StagedDir {
     target: PathBuf,
     staging: PathBuf,
+    /// Whether `create` made `target` (then a run that publishes nothing removes it again).
+    created: bool,
 }
 
 impl StagedDir {
-    /// Creates `target` if needed and a fresh, exclusively created staging directory inside it.
+    /// Creates `target` if needed and a fresh, exclusively created staging directory inside it
+    /// (private to the user on Unix). Call it before computing: it is the check that the
+    /// output can be written.
     ///
     /// Errors: [`Error::Io`] naming `target` when either cannot be created, or when `target`
-    /// exists and is not a directory.
+    /// exists and is not a directory; naming `target/.funcorr.lock` when that is not a regular
+    /// file (a symbolic link, a FIFO, a directory).
     pub fn create(target: &Path) -> Result<StagedDir> {
         use std::sync::atomic::{AtomicU64, Ordering};
         static COUNTER: AtomicU64 = AtomicU64::new(0);
+        let created = std::fs::symlink_metadata(target).is_err();
         std::fs::create_dir_all(target).map_err(|e| Error::io(target, e))?;
+        match Dir::open(target)?.kind(LOCK)? {
+            None | Some(Kind::File) => {}
+            Some(k) => return Err(beneath::wrong_kind(&target.join(LOCK), k, "a regular lock file")),
+        }
         remove_dead_staging(target);
         let mut attempt = 0;
         loop {
             let n = COUNTER.fetch_add(1, Ordering::Relaxed);
             let staging = target.join(format!(".funcorr-staging.{}-{n}", std::process::id()));
-            match std::fs::create_dir(&staging) {
-                Ok(()) => return Ok(StagedDir { target: target.to_path_buf(), staging }),
+            let mut builder = std::fs::DirBuilder::new();
+            #[cfg(unix)]
+            std::os::unix::fs::DirBuilderExt::mode(&mut builder, 0o700);
+            match builder.create(&staging) {
+                Ok(()) => return Ok(StagedDir { target: target.to_path_buf(), staging, created }),
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && attempt < 100 => attempt += 1,
                 Err(e) => return Err(Error::io(target, e)),
             }
@@ -101,79 +126,109 @@ impl StagedDir {
     ///
     /// Errors: [`Error::Io`] naming the file that could not be moved or deleted; the manifest
     /// is then absent, which marks the directory as incomplete.
-    pub fn publish(self) -> Result<Vec<String>> {
+    pub fn publish(mut self) -> Result<Vec<String>> {
         let files = staged_files(&self.staging)?;
-        let lock_path = self.target.join(".funcorr.lock");
-        let lock = std::fs::OpenOptions::new()
-            .create(true)
-            .truncate(false)
-            .write(true)
-            .open(&lock_path)
-            .map_err(|e| Error::io(&lock_path, e))?;
-        lock.lock().map_err(|e| Error::io(&lock_path, e))?;
-        // Before anything changes: a target name taken by a directory (or a file where a
-        // subdirectory must go) would stop the publish halfway, so it fails here, untouched.
+        let root = Dir::open(&self.target)?;
+        let lock = beneath::open_lock(&self.target.join(LOCK))?;
+        lock.lock().map_err(|e| Error::io(self.target.join(LOCK), e))?;
+        // Before anything changes: a target name taken by a directory, or a file or a link where
+        // a subdirectory must go, would stop the publish halfway, so it fails here, untouched.
         for rel in &files {
-            let to = self.target.join(rel);
-            if std::fs::symlink_metadata(&to).is_ok_and(|m| m.is_dir()) {
+            let (dirs, name) = split(rel);
+            let Some(dir) = walk(&root, &dirs, false)? else { continue };
+            if dir.kind(name)? == Some(Kind::Dir) {
                 let e = std::io::Error::new(
                     std::io::ErrorKind::IsADirectory,
                     "a directory is in the way of an output file",
                 );
-                return Err(Error::io(&to, e));
-            }
-            let mut parent = to.parent();
-            while let Some(d) = parent.filter(|d| *d != self.target) {
-                if std::fs::symlink_metadata(d).is_ok_and(|m| !m.is_dir()) {
-                    let e = std::io::Error::new(
-                        std::io::ErrorKind::NotADirectory,
-                        "a file is in the way of an output directory",
-                    );
-                    return Err(Error::io(d, e));
-                }
-                parent = d.parent();
+                return Err(Error::io(dir.path().join(name), e));
             }
         }
-        let manifest = self.target.join(MANIFEST);
-        let previous = read_manifest(&manifest);
-        match std::fs::remove_file(&manifest) {
+        // From here on the directory holds this run's output (or a partial publish): it stays.
+        self.created = false;
+        let previous = read_manifest(&root);
+        match root.remove_file(MANIFEST) {
             Ok(()) => {}
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(e) => return Err(Error::io(&manifest, e)),
+            Err(Error::Io { source, .. }) if source.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(e),
         }
         for rel in &files {
-            let (from, to) = (self.staging.join(rel), self.target.join(rel));
-            if let Some(parent) = to.parent() {
-                std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
+            let (dirs, name) = split(rel);
+            if let Some(dir) = walk(&root, &dirs, true)? {
+                dir.rename_into(&self.staging.join(rel), name)?;
             }
-            std::fs::rename(&from, &to).map_err(|e| Error::io(&to, e))?;
         }
         for rel in previous.iter().filter(|r| files.binary_search(r).is_err()) {
-            let stale = self.target.join(rel);
-            match std::fs::symlink_metadata(&stale) {
-                Ok(m) if m.is_file() => std::fs::remove_file(&stale).map_err(|e| Error::io(&stale, e))?,
-                _ => continue,
-            }
-            // Subdirectories that the stale file leaves empty go too (a non-empty one stays).
-            let mut dir = stale.parent();
-            while let Some(d) = dir.filter(|d| *d != self.target) {
-                if std::fs::remove_dir(d).is_err() {
-                    break;
-                }
-                dir = d.parent();
-            }
+            remove_stale(&root, rel)?;
         }
         let json = Manifest { tool: "funcorr", version: env!("CARGO_PKG_VERSION"), files: &files };
-        super::write_atomic(&manifest, super::to_json_sorted(&json)? + "\n")?;
+        super::write_atomic(self.target.join(MANIFEST), super::to_json_sorted(&json)? + "\n")?;
         drop(lock);
         // `self` drops on return: the (now empty) staging directory goes.
         Ok(files)
     }
 }
 
+/// A published path `a/b/c.txt` as its directories `[a, b]` and its name `c.txt`.
+fn split(rel: &str) -> (Vec<&str>, &str) {
+    let mut parts: Vec<&str> = rel.split('/').collect();
+    let name = parts.pop().unwrap_or_default();
+    (parts, name)
+}
+
+/// The directory `root/dirs…`, entered one component at a time without following a link.
+/// `Ok(None)` when a component is absent (and `create` is false); created when `create` is true.
+/// Errors: a component that is a link, a file or anything but a directory, named.
+fn walk(root: &Dir, dirs: &[&str], create: bool) -> Result<Option<Dir>> {
+    let mut cur: Option<Dir> = None;
+    for d in dirs {
+        let next = cur.as_ref().unwrap_or(root).subdir(d, create)?;
+        match next {
+            Some(n) => cur = Some(n),
+            None => return Ok(None),
+        }
+    }
+    match cur {
+        Some(c) => Ok(Some(c)),
+        None => root.try_clone().map(Some),
+    }
+}
+
+/// Deletes the stale output `rel` of a previous run when it is a regular file reached through
+/// real directories only (an entry under a link, or no longer a file, is left alone), then the
+/// subdirectories it leaves empty.
+fn remove_stale(root: &Dir, rel: &str) -> Result<()> {
+    let (dirs, name) = split(rel);
+    let mut chain: Vec<Dir> = Vec::with_capacity(dirs.len());
+    for d in &dirs {
+        match chain.last().unwrap_or(root).subdir(d, false) {
+            Ok(Some(next)) => chain.push(next),
+            // Absent, a link, or not a directory: not an output of ours any more.
+            _ => return Ok(()),
+        }
+    }
+    let dir = chain.last().unwrap_or(root);
+    if dir.kind(name)? != Some(Kind::File) {
+        return Ok(());
+    }
+    dir.remove_file(name)?;
+    // Subdirectories that the stale file leaves empty go too (a non-empty one stays).
+    for i in (0..dirs.len()).rev() {
+        let parent = if i == 0 { root } else { &chain[i - 1] };
+        if !parent.remove_empty_dir(dirs[i]) {
+            break;
+        }
+    }
+    Ok(())
+}
+
 impl Drop for StagedDir {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.staging);
+        if self.created {
+            // A directory this run made and never published into: removed if still empty.
+            let _ = std::fs::remove_dir(&self.target);
+        }
     }
 }
 
@@ -290,24 +345,32 @@ struct Manifest<'a> {
 /// The files listed in a previous manifest, keeping only plain relative paths (no `..`, no
 /// root, no hidden component), so that a damaged or hostile manifest cannot make a run delete
 /// anything outside its directory. An unreadable manifest lists nothing.
-fn read_manifest(path: &Path) -> Vec<String> {
+/// The manifest of `root`, read only when it is a regular file (never through a link, never
+/// blocking on a FIFO); see [`manifest_files`].
+fn read_manifest(root: &Dir) -> Vec<String> {
     use std::io::Read;
-    let Ok(file) = std::fs::File::open(path) else { return Vec::new() };
-    let mut text = String::new();
-    if file.take(MAX_MANIFEST_BYTES).read_to_string(&mut text).is_err() {
+    let Ok(file) = beneath::open_regular(&root.path().join(MANIFEST)) else { return Vec::new() };
+    let mut bytes = Vec::new();
+    if file.take(MAX_MANIFEST_BYTES).read_to_end(&mut bytes).is_err() {
         return Vec::new();
     }
-    let Ok(v) = serde_json::from_str::<serde_json::Value>(&text) else { return Vec::new() };
+    manifest_files(&bytes)
+}
+
+/// The files a manifest's bytes list (its `"files"` array), keeping only plain relative paths:
+/// `/`-separated names, none empty, hidden (`.`, `..`, `.x`) or holding a backslash or a control
+/// character, so that a damaged or hostile manifest cannot make a run delete anything outside
+/// its directory or any of its own hidden files. Anything that is not such a manifest lists
+/// nothing. Never fails.
+pub fn manifest_files(bytes: &[u8]) -> Vec<String> {
+    let Ok(v) = serde_json::from_slice::<serde_json::Value>(bytes) else { return Vec::new() };
     let Some(files) = v.get("files").and_then(|f| f.as_array()) else { return Vec::new() };
     files.iter().filter_map(|f| f.as_str()).filter(|f| is_plain_relative(f)).map(str::to_string).collect()
 }
 
 fn is_plain_relative(rel: &str) -> bool {
-    !rel.is_empty()
-        && Path::new(rel).components().all(|c| match c {
-            Component::Normal(s) => !s.to_string_lossy().starts_with('.'),
-            _ => false,
-        })
+    rel.split('/')
+        .all(|c| !c.is_empty() && !c.starts_with('.') && !c.contains(|ch: char| ch == '\\' || ch.is_control()))
 }
 
 #[cfg(test)]
@@ -339,6 +402,9 @@ mod tests {
         }
         let entries: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
         assert!(entries.is_empty(), "left behind: {entries:?}");
+        // A directory the failed run created is gone too; one that existed stays.
+        drop(StagedDir::create(&dir.join("new/out")).unwrap());
+        assert!(!dir.join("new/out").exists() && dir.exists());
     }
 
     #[test]
@@ -406,8 +472,83 @@ mod tests {
         assert!(root.join("victim.txt").exists());
         assert!(dir.join(".hidden").exists());
         assert!(is_plain_relative("maps/a.txt"));
-        for bad in ["../a", "/a", ".a", "a/./b/../c", "", "a/.b"] {
+        for bad in ["../a", "/a", ".a", "a/./b/../c", "", "a/.b", "a/./b", "a//b", "a/", "a\\b", "a\0b"] {
             assert!(!is_plain_relative(bad), "{bad}");
+        }
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn nothing_is_deleted_or_written_through_a_link_in_the_directory() {
+        use std::os::unix::fs::symlink;
+        let root = tmp_dir("staged_links");
+        let (dir, ext) = (root.join("out"), root.join("ext"));
+        write(&ext.join("v.txt"), "keep");
+        write(&ext.join("deep/w.txt"), "keep");
+        std::fs::create_dir_all(&dir).unwrap();
+        symlink("../ext", dir.join("sub")).unwrap();
+        symlink(ext.join("v.txt"), dir.join("link.txt")).unwrap();
+        write(&dir.join(MANIFEST), r#"{"files": ["sub/v.txt", "sub/deep/w.txt", "link.txt"]}"#);
+        let s = StagedDir::create(&dir).unwrap();
+        write(&s.join("map.txt"), "x");
+        assert_eq!(s.publish().unwrap(), ["map.txt"]);
+        assert_eq!(std::fs::read_to_string(ext.join("v.txt")).unwrap(), "keep", "deleted through a link");
+        assert!(ext.join("deep/w.txt").exists(), "deleted through a link");
+        assert!(std::fs::symlink_metadata(dir.join("link.txt")).is_ok(), "a link is not a stale output");
+        // An output whose directory is a link: an error naming it before anything is published.
+        let s = StagedDir::create(&dir).unwrap();
+        write(&s.join("map.txt"), "new");
+        write(&s.join("sub/a.txt"), "would land outside");
+        let e = s.publish().unwrap_err().to_string();
+        assert!(e.contains("sub") && e.contains("symbolic link"), "{e}");
+        assert!(!ext.join("a.txt").exists(), "written through a link");
+        assert_eq!(std::fs::read_to_string(dir.join("map.txt")).unwrap(), "x", "published halfway");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_lock_or_manifest_that_is_a_fifo_or_a_link_never_hangs_or_follows() {
+        let mkfifo = |p: &Path| {
+            let c = std::ffi::CString::new(p.to_str().unwrap()).unwrap();
+            // SAFETY: a valid NUL-terminated path.
+            assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        };
+        let root = tmp_dir("staged_fifo");
+        // A FIFO lock: refused up front, and at publish time (swapped in after create).
+        let dir = root.join("a");
+        std::fs::create_dir_all(&dir).unwrap();
+        mkfifo(&dir.join(LOCK));
+        let e = StagedDir::create(&dir).unwrap_err().to_string();
+        assert!(e.contains(LOCK) && e.contains("FIFO"), "{e}");
+        std::fs::remove_file(dir.join(LOCK)).unwrap();
+        let s = StagedDir::create(&dir).unwrap();
+        write(&s.join("map.txt"), "x");
+        mkfifo(&dir.join(LOCK));
+        let e = s.publish().unwrap_err().to_string();
+        assert!(e.contains("FIFO"), "{e}");
+        assert_eq!(staged_files(&dir).unwrap(), Vec::<String>::new(), "published without the lock");
+        // A dangling link as the lock: refused, its target never created.
+        let dir = root.join("b");
+        std::fs::create_dir_all(&dir).unwrap();
+        std::os::unix::fs::symlink(root.join("anywhere"), dir.join(LOCK)).unwrap();
+        assert!(StagedDir::create(&dir).unwrap_err().to_string().contains("symbolic link"));
+        assert!(std::fs::symlink_metadata(root.join("anywhere")).is_err());
+        // A FIFO manifest is not read (nor waited on): it lists nothing and is replaced.
+        let dir = root.join("c");
+        std::fs::create_dir_all(&dir).unwrap();
+        mkfifo(&dir.join(MANIFEST));
+        let s = StagedDir::create(&dir).unwrap();
+        write(&s.join("map.txt"), "x");
+        assert_eq!(s.publish().unwrap(), ["map.txt"]);
+        assert!(std::fs::metadata(dir.join(MANIFEST)).unwrap().is_file());
+    }
+
+    #[test]
+    fn manifest_entries_are_plain_relative_names_only() {
+        let m = br#"{"files": ["map.txt", "maps/a.txt", "a//b", "a/./b", "../x", "/etc/x", "a\\b", ".h", "a/.h", "x\u0000y", 3]}"#;
+        assert_eq!(manifest_files(m), ["map.txt", "maps/a.txt"]);
+        for bad in [&b"not json"[..], b"{}", br#"{"files": "map.txt"}"#, b"[1, 2]", b"\xff\xfe"] {
+            assert!(manifest_files(bad).is_empty());
         }
     }
 

@@ -506,16 +506,9 @@ pub fn run_prepared(
             _ => None,
         };
         let points = x.positions().zip(y.positions());
-        return run_with_gradients(
-            &x.basis,
-            &y.basis,
-            Some((&x.laplacian, &y.laplacian)),
-            gradients,
-            points,
-            f,
-            g,
-            opts,
-        );
+        let r =
+            run_with_gradients(&x.basis, &y.basis, Some((&x.laplacian, &y.laplacian)), gradients, points, f, g, opts)?;
+        return Ok(in_input_units(r, x, y));
     }
     let r = axiomatic::axiomatic_pipeline(x, y, f, g, &opts.axiomatic)?;
     let mut stages = r.stages;
@@ -528,7 +521,7 @@ pub fn run_prepared(
         }
         _ => crate::refine::map_of_pullback(psi, phi, c.as_ref(), None),
     })?;
-    Ok(MatchResult {
+    let r = MatchResult {
         map_xy: r.map_xy,
         map_yx,
         c,
@@ -538,7 +531,28 @@ pub fn run_prepared(
         solver: None,
         stages,
         candidates: Some((r.candidates, r.chosen)),
-    })
+    };
+    Ok(in_input_units(r, x, y))
+}
+
+/// A result computed between the unit-area bases of prepared shapes
+/// ([`crate::prepared`], "Units") with its functional maps between the input bases: C (k_Y × k_X,
+/// coefficients on X → on Y) scales by √(area_Y / area_X), and so does the completion method's
+/// factor A of C = A Bᵀ. Point maps and the completion's T = L Rᵀ are unit-free.
+fn in_input_units(
+    mut r: MatchResult,
+    x: &crate::prepared::PreparedShape,
+    y: &crate::prepared::PreparedShape,
+) -> MatchResult {
+    let s = (y.area / x.area).sqrt();
+    if s != 1.0 {
+        r.c = &r.c * faer::Scale(s);
+        r.c_method = &r.c_method * faer::Scale(s);
+        if let Some((a, _)) = &mut r.coefficients {
+            *a = &*a * faer::Scale(s);
+        }
+    }
+    r
 }
 
 /// The completion method's point maps X → Y and Y → X by `how`.

@@ -9,6 +9,14 @@
 //! the request's, serves a request for k by truncation. Entries are
 //! `<key>-tol<tol>-k<K>.npz`; every read checks the archive's CRC-32 and the arrays' shapes, and
 //! anything that fails is a miss (the caller recomputes), never a wrong basis.
+//!
+//! The directory is shared and not written by hand, so its entries are opened only as regular
+//! files: never through a symbolic link, never blocking on a FIFO (a warning and a miss). A write
+//! goes to a hidden temporary (`.<entry>.<pid>-<n>.tmp`) renamed into place; the temporaries of
+//! writers that were killed are swept by the next write into the directory: a temporary not
+//! modified for [`ORPHAN_AGE`] is removed (a writer at work keeps its temporary's modification
+//! time fresh, and no entry takes that long to write; the rule needs no process ids, which mean
+//! nothing on another host sharing the directory).
 
 use std::path::{Path, PathBuf};
 
@@ -38,10 +46,25 @@ pub fn save_basis(path: &Path, basis: &Basis) -> Result<()> {
     )
 }
 
+/// A hidden temporary in the cache directory not modified for this long belongs to a writer
+/// that is gone, and the next write removes it (one hour).
+pub const ORPHAN_AGE: std::time::Duration = std::time::Duration::from_secs(3600);
+
 /// Reads a basis written by [`save_basis`] (or by numpy with the same arrays; `residuals` is
 /// optional). Errors name the file and the array that is missing, misshapen or not finite.
 pub fn load_basis(path: &Path) -> Result<Basis> {
-    let arrays = read_npz(path)?;
+    basis_from_arrays(read_npz(path)?, path)
+}
+
+/// [`load_basis`] of a cache entry: the file is opened only if it is a regular file (no link
+/// followed, no FIFO waited on).
+fn load_entry(path: &Path) -> Result<Basis> {
+    let file = crate::io::beneath::open_regular(path)?;
+    let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    basis_from_arrays(crate::io::npy::read_npz_from(std::io::BufReader::new(file), len, path)?, path)
+}
+
+fn basis_from_arrays(arrays: Vec<(String, NpzArray)>, path: &Path) -> Result<Basis> {
     let get = |name: &str| -> Result<(&[usize], &[f64])> {
         match arrays.iter().find(|(n, _)| n == name) {
             Some((_, NpzArray::F64 { shape, data })) => {
@@ -159,7 +182,7 @@ impl BasisCache {
         candidates.sort();
         candidates.into_iter().find_map(|(_, path)| {
             // A damaged entry is a miss, said out loud (the basis is recomputed and rewritten).
-            let basis = load_basis(&path)
+            let basis = load_entry(&path)
                 .and_then(|b| match b.n() == n {
                     true => Ok(b),
                     false => Err(Error::parse(&path, None, format!("{} rows, expected {n}", b.n()))),
@@ -172,10 +195,40 @@ impl BasisCache {
 
     /// Stores `basis`, computed with tolerance `tol`, under `key` (whole or not at all; concurrent
     /// writers of the same entry all succeed).
+    /// Removes the orphaned temporaries of killed writers first (see the module documentation).
     pub fn put(&self, key: &str, basis: &Basis, tol: f64) -> Result<()> {
         std::fs::create_dir_all(&self.dir).map_err(|e| Error::io(&self.dir, e))?;
+        self.sweep_orphans();
         save_basis(&self.dir.join(format!("{key}-tol{tol:e}-k{}.npz", basis.k())), basis)
     }
+
+    /// Removes the hidden temporaries of entries (`.<…>.npz.<pid>-<n>.tmp`) that were not
+    /// modified for [`ORPHAN_AGE`]; links and anything else are left alone. Failures are ignored
+    /// (another process may sweep the same file).
+    fn sweep_orphans(&self) {
+        let Ok(dir) = crate::io::beneath::Dir::open(&self.dir) else { return };
+        let Ok(entries) = std::fs::read_dir(&self.dir) else { return };
+        let now = std::time::SystemTime::now();
+        for entry in entries.flatten() {
+            let name = entry.file_name();
+            let Some(name) = name.to_str() else { continue };
+            if !is_entry_temporary(name) || !entry.file_type().is_ok_and(|t| t.is_file()) {
+                continue;
+            }
+            let age = entry.metadata().and_then(|m| m.modified()).ok().and_then(|t| now.duration_since(t).ok());
+            if age.is_some_and(|a| a > ORPHAN_AGE) {
+                let _ = dir.remove_file(name);
+            }
+        }
+    }
+}
+
+/// Whether `name` is the temporary of a cache entry's writer: `.<entry>.npz.<pid>-<n>.tmp`.
+fn is_entry_temporary(name: &str) -> bool {
+    let Some(rest) = name.strip_prefix('.').and_then(|r| r.strip_suffix(".tmp")) else { return false };
+    let Some((entry, id)) = rest.rsplit_once(".npz.") else { return false };
+    let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+    !entry.is_empty() && id.split_once('-').is_some_and(|(pid, n)| digits(pid) && digits(n))
 }
 
 #[cfg(test)]
@@ -225,6 +278,50 @@ mod tests {
         std::fs::write(cache.dir().join(format!("{key}-tol1e-8-k20.npz")), b"garbage").unwrap();
         assert!(cache.get(&key, lap.n(), 13, tol).is_none());
         assert!(load_basis(&cache.dir().join(format!("{key}-tol1e-8-k20.npz"))).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn fifos_and_links_are_misses_and_orphaned_temporaries_are_swept() {
+        let (lap, b, dir) = sphere_basis_and_dir("cache-hostile");
+        let cache = BasisCache::new(&dir);
+        let key = BasisCache::key(&lap);
+        cache.put(&key, &b, 1e-8).unwrap();
+        let entry = std::fs::read_dir(&dir).unwrap().next().unwrap().unwrap().path();
+        // A FIFO in place of the entry: a miss at once, not a hang.
+        std::fs::remove_file(&entry).unwrap();
+        let c = std::ffi::CString::new(entry.to_str().unwrap()).unwrap();
+        // SAFETY: a valid NUL-terminated path.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        assert!(cache.get(&key, lap.n(), 12, 1e-8).is_none());
+        // A link to a good basis elsewhere: not followed.
+        std::fs::remove_file(&entry).unwrap();
+        let elsewhere = dir.with_extension("elsewhere.npz");
+        save_basis(&elsewhere, &b).unwrap();
+        std::os::unix::fs::symlink(&elsewhere, &entry).unwrap();
+        assert!(cache.get(&key, lap.n(), 12, 1e-8).is_none(), "a link was followed");
+        std::fs::remove_file(&entry).unwrap();
+        std::fs::remove_file(&elsewhere).unwrap();
+        // Temporaries: an old one is an orphan, a fresh one a writer at work; other names stay.
+        let name = entry.file_name().unwrap().to_str().unwrap().to_string();
+        let old = dir.join(format!(".{name}.4242-7.tmp"));
+        let fresh = dir.join(format!(".{name}.4242-8.tmp"));
+        let other = dir.join(".notes.tmp");
+        for p in [&old, &fresh, &other] {
+            std::fs::write(p, "partial").unwrap();
+        }
+        let then = std::time::SystemTime::now() - 2 * ORPHAN_AGE;
+        for p in [&old, &other] {
+            std::fs::File::options().write(true).open(p).unwrap().set_modified(then).unwrap();
+        }
+        cache.put(&key, &b, 1e-8).unwrap();
+        assert!(!old.exists() && fresh.exists() && other.exists());
+        assert!(cache.get(&key, lap.n(), 12, 1e-8).is_some());
+        assert!(is_entry_temporary(".0123abcd-tol1e-8-k12.npz.17-0.tmp"));
+        for bad in [".x.npz.17-.tmp", "x.npz.1-2.tmp", ".x.npz.a-2.tmp", ".npz.1-2.tmp", ".x.npz.1-2"] {
+            assert!(!is_entry_temporary(bad), "{bad}");
+        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -71,6 +71,26 @@ impl SpectralOptions {
             dense_below: 1000,
         }
     }
+
+    /// Checks the tolerances: `max_residual` finite and > 0, `tol` finite, > 0 and ≤
+    /// `max_residual` (a looser stopping rule than the acceptance threshold would stop with
+    /// pairs the check then rejects, or, from the cache, serve any basis). Errors:
+    /// [`Error::Invalid`] naming `tol` or `max_residual`.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.max_residual.is_finite() && self.max_residual > 0.0) {
+            return Err(Error::invalid("max_residual", format!("must be finite and > 0, got {:e}", self.max_residual)));
+        }
+        if !(self.tol.is_finite() && self.tol > 0.0 && self.tol <= self.max_residual) {
+            return Err(Error::invalid(
+                "tol",
+                format!(
+                    "the eigensolver's tolerance must be in (0, {:e}] (the residual every pair is checked against), got {:e}",
+                    self.max_residual, self.tol
+                ),
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// A truncated Laplacian eigenbasis.
@@ -152,15 +172,27 @@ pub fn eigen_basis(lap: &Laplacian, opts: &SpectralOptions, progress: Option<Pro
     if let Some(p) = lap.w.val().iter().position(|v| !v.is_finite()) {
         return Err(Error::invalid("W", format!("entry {p} of the stiffness matrix is not finite")));
     }
-    if !(opts.tol > 0.0 && opts.max_residual > 0.0) {
-        return Err(Error::invalid("tol", "tolerances must be positive"));
+    opts.validate()?;
+    // The solver works on the problem of the shape scaled to unit area (A / area_total): W is
+    // dimensionless (cotangent weights) or unchanged, so every number the solvers see is the same
+    // whatever the shape's units (faer's dense and tridiagonal eigensolvers have absolute
+    // thresholds: at 10⁻³ of a body's size the Ritz values fell below them and Lanczos stalled
+    // at residuals of 10⁻⁶). Then λ = λ' / area_total and φ = φ' / √area_total.
+    let total: f64 = lap.mass.iter().sum();
+    if !(total.is_finite() && total > 0.0) {
+        return Err(Error::invalid("mass", format!("the total vertex weight {total} must be finite and positive")));
     }
-    let sqrt_m: Vec<f64> = lap.mass.iter().map(|a| a.sqrt()).collect();
-    let (mut theta_lambda, mut u, info) = if n <= opts.dense_below {
-        dense_eigen(lap, &sqrt_m, k)?
+    let unit = Laplacian { w: lap.w.clone(), mass: lap.mass.iter().map(|a| a / total).collect(), kind: lap.kind };
+    let sqrt_m: Vec<f64> = unit.mass.iter().map(|a| a.sqrt()).collect();
+    let (mut theta_lambda, mut u, mut info) = if n <= opts.dense_below {
+        dense_eigen(&unit, &sqrt_m, k)?
     } else {
-        lanczos::lanczos(lap, &sqrt_m, opts, progress)?
+        lanczos::lanczos(&unit, &sqrt_m, opts, progress)?
     };
+    drop(unit);
+    theta_lambda.iter_mut().for_each(|l| *l /= total);
+    info.shift /= total;
+    let sqrt_m: Vec<f64> = lap.mass.iter().map(|a| a.sqrt()).collect();
     // φ = A^{-1/2} u, then a deterministic sign.
     for j in 0..k {
         let col = u.col_as_slice_mut(j);
@@ -200,6 +232,7 @@ pub fn eigen_basis_cached(
     cache: Option<&BasisCache>,
     progress: Option<Progress>,
 ) -> Result<(Basis, Option<SolveInfo>)> {
+    opts.validate()?;
     let key = cache.map(|_| BasisCache::key(lap));
     if let (Some(c), Some(key)) = (cache, &key) {
         if let Some(b) = c.get(key, lap.n(), opts.k, opts.tol) {
@@ -309,6 +342,25 @@ mod tests {
 
     fn solve(lap: &Laplacian, k: usize) -> Basis {
         eigen_basis(lap, &SpectralOptions::new(k), None).unwrap().0
+    }
+
+    #[test]
+    fn a_tolerance_looser_than_the_acceptance_check_names_tol() {
+        let lap = cotangent(&icosphere(1)).unwrap();
+        let cache = BasisCache::new(std::env::temp_dir().join(format!("funcorr-tol-{}", std::process::id())));
+        for tol in [1e300, 1e-3, f64::NAN, f64::INFINITY, 0.0, -1.0] {
+            let o = SpectralOptions { tol, ..SpectralOptions::new(5) };
+            for r in
+                [eigen_basis(&lap, &o, None).map(|_| ()), eigen_basis_cached(&lap, &o, Some(&cache), None).map(|_| ())]
+            {
+                match r {
+                    Err(Error::Invalid { what, .. }) => assert_eq!(what, "tol"),
+                    other => panic!("tol {tol}: {other:?}"),
+                }
+            }
+        }
+        assert!(SpectralOptions { tol: 1e-6, ..SpectralOptions::new(5) }.validate().is_ok());
+        let _ = std::fs::remove_dir_all(cache.dir());
     }
 
     /// Φᵀ A Φ = I to `tol`.

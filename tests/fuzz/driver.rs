@@ -267,6 +267,28 @@ g body\nf 1/1/1 3/1/1 5/1/1\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf -4 -6 -1 -3\nusemtl sk
             run: |b| names_file(io::indices::read_labels(Cursor::new(b), p(), 4)),
         },
         Target {
+            name: "manifest",
+            seeds: vec![
+                br#"{"files":["map.txt","maps/a.txt"],"tool":"funcorr","version":"0.1.0"}"#.to_vec(),
+                br#"{"files":["../v.txt","sub/v.txt","/etc/passwd",".hidden","a\\b","x\u0000y"]}"#.to_vec(),
+                b"{\n  \"files\": [\n    \"C.npy\",\n    \"render.png\"\n  ]\n}\n".to_vec(),
+            ],
+            run: |b| {
+                // A previous run's manifest decides what a publish deletes: every name it keeps
+                // must stay below the output directory and off its hidden files.
+                let files = funcorr::io::staged::manifest_files(b);
+                if !files.is_empty() {
+                    ACCEPTED.fetch_add(1, Ordering::Relaxed);
+                }
+                files.iter().find_map(|f| {
+                    let plain = f.split('/').all(|c| {
+                        !c.is_empty() && !c.starts_with('.') && !c.chars().any(|ch| ch == '\\' || ch.is_control())
+                    });
+                    (!plain).then(|| format!("kept a manifest entry that leaves the directory: {f:?}"))
+                })
+            },
+        },
+        Target {
             name: "data-spec",
             seeds: [
                 "wks",
@@ -382,6 +404,17 @@ const DICTIONARY: &[&str] = &[
     "\u{93}NUMPY",
     "PK\u{3}\u{4}",
     ".npy",
+    "\"files\"",
+    "[",
+    "]",
+    "{",
+    "}",
+    "\"",
+    "/",
+    "..",
+    "\\\\",
+    "\\u0000",
+    "\\/",
 ];
 
 /// Numbers that replace a digit: extremes, malformed, signs.
