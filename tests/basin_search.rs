@@ -26,7 +26,8 @@ fn the_correction_brings_a_swapped_leg_back() {
     let sy = SampleDistances::new(ty, &y.basis.mass, &gy, 1000).unwrap();
     // Ground truth: template point t is vertex gt_x[t] of X, gt_y[t] of Y, gt_s[t] its mirror.
     let read = |n: &str, len: usize| read_index_list_file(&data(n), true, len).unwrap();
-    let (gt_x, gt_y, gt_s) = (read("tr_reg_000.vts", x.n()), read("tr_reg_001.vts", y.n()), read("tr_reg_001.sym.vts", y.n()));
+    let (gt_x, gt_y, gt_s) =
+        (read("tr_reg_000.vts", x.n()), read("tr_reg_001.vts", y.n()), read("tr_reg_001.sym.vts", y.n()));
     let px = tx.vertices();
     let template_of = |v: usize| {
         let d = |t: usize| (0..3).map(|c| (px[gt_x[t]][c] - px[v][c]).powi(2)).sum::<f64>();
@@ -41,13 +42,8 @@ fn the_correction_brings_a_swapped_leg_back() {
         let p = px[v];
         (p[1] - lo[1]) < 0.4 * (hi[1] - lo[1]) && (p[0] - lo[0]) < 0.5 * (hi[0] - lo[0])
     };
-    let swapped: Vec<usize> = sx
-        .samples
-        .vertices
-        .iter()
-        .zip(&templates)
-        .map(|(&v, &t)| if on_leg(v) { gt_s[t] } else { gt_y[t] })
-        .collect();
+    let swapped: Vec<usize> =
+        sx.samples.vertices.iter().zip(&templates).map(|(&v, &t)| if on_leg(v) { gt_s[t] } else { gt_y[t] }).collect();
     let leg = sx.samples.vertices.iter().filter(|&&v| on_leg(v)).count();
     assert!(leg >= 15, "{leg} samples on the leg");
     let close = |images: &[usize]| {
@@ -62,7 +58,11 @@ fn the_correction_brings_a_swapped_leg_back() {
     for d in [None, Some(&desc)] {
         let (fixed, report) = correct(&sx, &sy, &swapped, d, 10).unwrap();
         let share = close(&fixed);
-        assert!(share >= 0.97, "with descriptors {}: {share} of the samples back near the truth ({report:?})", d.is_some());
+        assert!(
+            share >= 0.97,
+            "with descriptors {}: {share} of the samples back near the truth ({report:?})",
+            d.is_some()
+        );
         assert!(report.moved >= leg / 2, "{report:?}");
     }
 }

@@ -29,9 +29,9 @@ use crate::descriptors::{self, Descriptors};
 use crate::error::{Error, Result};
 use crate::fmap::axiomatic::{axiomatic_sizes, AxiomaticOptions, ShapeData};
 use crate::fmap::energy::{EnergyWeights, Orientation};
+use crate::geodesic::GraphGeodesics;
 use crate::prepared::PreparedShape;
 use crate::refine::{self, ZoomOutOptions};
-use crate::geodesic::GraphGeodesics;
 use crate::spatial::{farthest_point_samples, Samples};
 
 use super::search::{self, SampleDistances, SearchOptions};
@@ -419,7 +419,8 @@ pub fn axiomatic_pipeline(
             // The samples the correction moved away from the candidate's images by more than
             // the search's resolution take their corrected images, the others keep the
             // candidate's.
-            let moved: Vec<bool> = images.iter().zip(&fixed).map(|(&o, &f)| search::has_moved(&s.x, &s.y, o, f)).collect();
+            let moved: Vec<bool> =
+                images.iter().zip(&fixed).map(|(&o, &f)| search::has_moved(&s.x, &s.y, o, f)).collect();
             report.moved = moved.iter().filter(|&&m| m).count();
             if report.moved > 0 {
                 let hybrid: Vec<usize> =
@@ -504,7 +505,9 @@ impl ProbeContext<'_> {
             _ => {
                 let c = refine::zoomout_fmap(phi, psi, self.probe_samples, c.as_ref(), &o)?;
                 let map = match self.patch {
-                    Some(patch) => spread(phi.nrows(), patch, &refine::map_of_pullback(phi, psi, c.as_ref(), Some(patch))?),
+                    Some(patch) => {
+                        spread(phi.nrows(), patch, &refine::map_of_pullback(phi, psi, c.as_ref(), Some(patch))?)
+                    }
                     None => refine::map_of_pullback(phi, psi, c.as_ref(), None)?,
                 };
                 (c, map)
@@ -523,15 +526,14 @@ impl ProbeContext<'_> {
                 let images: Vec<usize> = s.x.samples.vertices.iter().map(|&v| map[v]).collect();
                 candidate.distortion = search::distortion(&s.x, &s.y, &images);
                 let (f, g) = (&self.data.0.values, &self.data.1.values);
-                candidate.data_misfit = s
-                    .x
-                    .samples
-                    .vertices
-                    .iter()
-                    .zip(&images)
-                    .map(|(&v, &w)| (0..f.ncols()).map(|c| (f[(v, c)] - g[(w, c)]).powi(2)).sum::<f64>().sqrt())
-                    .sum::<f64>()
-                    / images.len() as f64;
+                candidate.data_misfit =
+                    s.x.samples
+                        .vertices
+                        .iter()
+                        .zip(&images)
+                        .map(|(&v, &w)| (0..f.ncols()).map(|c| (f[(v, c)] - g[(w, c)]).powi(2)).sum::<f64>().sqrt())
+                        .sum::<f64>()
+                        / images.len() as f64;
                 Some(images)
             }
             (None, Some(tx), Some(py)) => {

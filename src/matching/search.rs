@@ -211,9 +211,7 @@ fn mean_descriptor_misfit(desc: &Mat<f64>, anchors: &[usize]) -> f64 {
 pub fn descriptor_distances(x: &SampleDistances, y: &SampleDistances, f: MatRef<f64>, g: MatRef<f64>) -> Mat<f64> {
     let q = f.ncols().min(g.ncols());
     let (xs, ys) = (&x.samples.vertices, &y.samples.vertices);
-    Mat::from_fn(xs.len(), ys.len(), |i, a| {
-        (0..q).map(|c| (f[(xs[i], c)] - g[(ys[a], c)]).powi(2)).sum::<f64>().sqrt()
-    })
+    Mat::from_fn(xs.len(), ys.len(), |i, a| (0..q).map(|c| (f[(xs[i], c)] - g[(ys[a], c)]).powi(2)).sum::<f64>().sqrt())
 }
 
 /// The a × a anchor distances as f32, column-major, ∞ (other components) replaced by ten times
@@ -221,8 +219,15 @@ pub fn descriptor_distances(x: &SampleDistances, y: &SampleDistances, f: MatRef<
 /// component. Single precision is ample for choosing among anchors (7 digits of distances
 /// between 10⁻³ and 10 on a unit-area shape); E itself is summed in f64.
 fn finite_f32(dy: &Mat<f64>) -> Vec<f32> {
-    let big = 10.0 * (0..dy.ncols()).flat_map(|j| dy.col_as_slice(j).iter()).copied().filter(|d| d.is_finite()).fold(0.0, f64::max);
-    (0..dy.ncols()).flat_map(|j| dy.col_as_slice(j).iter().map(move |&d| if d.is_finite() { d } else { big } as f32)).collect()
+    let big = 10.0
+        * (0..dy.ncols())
+            .flat_map(|j| dy.col_as_slice(j).iter())
+            .copied()
+            .filter(|d| d.is_finite())
+            .fold(0.0, f64::max);
+    (0..dy.ncols())
+        .flat_map(|j| dy.col_as_slice(j).iter().map(move |&d| if d.is_finite() { d } else { big } as f32))
+        .collect()
 }
 
 /// Neighbours of every sample for [`orientation`]: its `count` nearest other samples (by the
