@@ -396,6 +396,8 @@ pub fn axiomatic_pipeline(
     let mut starts: Vec<Mat<f64>> = fits;
     if let Some(s) = &search {
         let originals = probed.len();
+        // The hybrid sample map of each form (cheap), then their probes, in parallel.
+        let mut hybrids: Vec<(usize, bool, Vec<usize>)> = Vec::new();
         for joint in [true, false] {
             let scored: Vec<Candidate> = probed[..originals]
                 .iter()
@@ -425,16 +427,25 @@ pub fn axiomatic_pipeline(
             if report.moved > 0 {
                 let hybrid: Vec<usize> =
                     fixed.iter().zip(images).zip(&moved).map(|((&f, &o), &m)| if m { f } else { o }).collect();
-                let k0 = p.candidates.iter().copied().min().unwrap_or(1).min(s.x.len() / 4).max(1);
-                let c0 = refine::pullback(phi, psi, &s.x.samples, &hybrid, k0, k0)?;
-                let mut q = ctx.probe(&c0, k0, false)?;
-                q.candidate.corrected_from = Some((from, joint));
-                probed.push(q);
-                starts.push(c0);
+                hybrids.push((from, joint, hybrid));
             }
             if joint {
                 correction = Some(report);
             }
+        }
+        let k0 = p.candidates.iter().copied().min().unwrap_or(1).min(s.x.len() / 4).max(1);
+        let extra: Vec<(Probe, Mat<f64>)> = hybrids
+            .par_iter()
+            .map(|(from, joint, hybrid)| {
+                let c0 = refine::pullback(phi, psi, &s.x.samples, hybrid, k0, k0)?;
+                let mut q = ctx.probe(&c0, k0, false)?;
+                q.candidate.corrected_from = Some((*from, *joint));
+                Ok((q, c0))
+            })
+            .collect::<Result<_>>()?;
+        for (q, c0) in extra {
+            probed.push(q);
+            starts.push(c0);
         }
     }
     let candidates: Vec<Candidate> = probed.iter().map(|p| p.candidate.clone()).collect();
