@@ -31,7 +31,7 @@ use crate::fmap::axiomatic::{axiomatic_sizes, AxiomaticOptions, ShapeData};
 use crate::fmap::energy::{EnergyWeights, Orientation};
 use crate::geodesic::GraphGeodesics;
 use crate::prepared::PreparedShape;
-use crate::refine::{self, ZoomOutOptions};
+use crate::refine::{self, Scope, ZoomOutOptions};
 use crate::spatial::{farthest_point_samples, Samples};
 
 use super::search::{self, SampleDistances, SearchOptions};
@@ -92,7 +92,7 @@ pub struct AxiomaticPipeline {
 
 /// The searches of the pipeline on large pairs. Above `above_pairs` vertex pairs n · m (with
 /// positions on both shapes and samples on): the ZoomOut iterations (probes and final) match
-/// each sample of X near its previous image only ([`crate::refine::zoomout_fmap_near`]); a
+/// each sample of X near its previous image only ([`crate::refine::zoomout`] with [`crate::refine::Scope::Near`]); a
 /// probe's metric distortion and orientation are measured on the edges and triangles incident to
 /// its samples ([`crate::refine::metric_distortion_around`]), so its map is needed on their
 /// one-rings only; and every point map (those one-rings, the final X → Y and Y → X maps) matches
@@ -502,24 +502,27 @@ impl ProbeContext<'_> {
         let (c, map) = match (self.near, self.probe_refs) {
             (Some(near), Some(sy)) => {
                 let (xs, ys) = (&self.probe_samples.vertices, &sy.vertices);
-                let c = refine::zoomout_fmap_near(phi, psi, self.probe_samples, ys, c.as_ref(), &o, near)?;
+                let scope = Scope::Near { near, x_cells: xs, y_cells: ys };
+                let c = refine::zoomout(phi, psi, self.probe_samples, c.as_ref(), &o, scope)?;
                 let map = match self.patch {
                     // The images of the patch; other entries stay 0 (unread).
                     Some(patch) => {
-                        let images = refine::map_of_pullback_near_at(phi, psi, c.as_ref(), xs, ys, near, patch)?;
+                        let images = refine::map_of_pullback(phi, psi, c.as_ref(), Some(patch), scope)?;
                         spread(phi.nrows(), patch, &images)
                     }
-                    None => refine::map_of_pullback_near(phi, psi, c.as_ref(), xs, ys, near)?,
+                    None => refine::map_of_pullback(phi, psi, c.as_ref(), None, scope)?,
                 };
                 (c, map)
             }
             _ => {
-                let c = refine::zoomout_fmap(phi, psi, self.probe_samples, c.as_ref(), &o)?;
+                let c = refine::zoomout(phi, psi, self.probe_samples, c.as_ref(), &o, Scope::Exact)?;
                 let map = match self.patch {
-                    Some(patch) => {
-                        spread(phi.nrows(), patch, &refine::map_of_pullback(phi, psi, c.as_ref(), Some(patch))?)
-                    }
-                    None => refine::map_of_pullback(phi, psi, c.as_ref(), None)?,
+                    Some(patch) => spread(
+                        phi.nrows(),
+                        patch,
+                        &refine::map_of_pullback(phi, psi, c.as_ref(), Some(patch), Scope::Exact)?,
+                    ),
+                    None => refine::map_of_pullback(phi, psi, c.as_ref(), None, Scope::Exact)?,
                 };
                 (c, map)
             }
@@ -652,7 +655,7 @@ fn refine_from(
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
     let t = std::time::Instant::now();
     if p.refine.k_final == 0 {
-        let unrefined = (c_fit.clone(), refine::map_of_pullback(phi, psi, c_fit.as_ref(), None)?, None);
+        let unrefined = (c_fit.clone(), refine::map_of_pullback(phi, psi, c_fit.as_ref(), None, Scope::Exact)?, None);
         stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
         return Ok(unrefined);
     }
@@ -674,15 +677,15 @@ fn refine_from(
             let o = ZoomOutOptions { k_final: p.refine.k_final.max(c_start.nrows()), step: p.refine.step };
             if p.polish > 0 {
                 // The polish reads the point map off itself.
-                let c = match (near_positions, &sy) {
-                    (Some(near), Some(sy)) => {
-                        refine::zoomout_fmap_near(phi, psi, &sx, &sy.vertices, c_start.as_ref(), &o, near)?
-                    }
-                    _ => refine::zoomout_fmap(phi, psi, &sx, c_start.as_ref(), &o)?,
+                let scope = match (near_positions, &sy) {
+                    (Some(near), Some(sy)) => Scope::Near { near, x_cells: &sx.vertices, y_cells: &sy.vertices },
+                    _ => Scope::Exact,
                 };
+                let c = refine::zoomout(phi, psi, &sx, c_start.as_ref(), &o, scope)?;
                 (c, None)
             } else {
-                let (c, m) = refine::zoomout(phi, psi, &sx, c_start.as_ref(), &o)?;
+                let c = refine::zoomout(phi, psi, &sx, c_start.as_ref(), &o, Scope::Exact)?;
+                let m = refine::map_of_pullback(phi, psi, c.as_ref(), None, Scope::Exact)?;
                 (c, Some(m))
             }
         }
@@ -697,7 +700,11 @@ fn refine_from(
                 None => samples_of(y, p.refine.samples)?,
             };
             let near = near_positions.as_ref().filter(|_| p.refine.samples > 0);
-            let (c, map) = refine::bijective_polish(phi, psi, &sx, &sy, c.as_ref(), p.polish, near)?;
+            let scope = match near {
+                Some(near) => Scope::Near { near, x_cells: &sx.vertices, y_cells: &sy.vertices },
+                None => Scope::Exact,
+            };
+            let (c, map) = refine::bijective_polish(phi, psi, &sx, &sy, c.as_ref(), p.polish, scope)?;
             stages.push(("polish".to_string(), t.elapsed().as_secs_f64()));
             Ok((c, map, near.map(|_| (sx, sy))))
         }

@@ -534,9 +534,10 @@ pub fn run_prepared(
     let map_yx = timed(&mut stages, "map Y → X", || match (&r.near_samples, x.positions(), y.positions()) {
         (Some((sx, sy)), Some(px), Some(py)) => {
             let near = crate::refine::Near { x: py, y: px, cells: opts.axiomatic.near.cells };
-            crate::refine::map_of_pullback_near(psi, phi, c.as_ref(), &sy.vertices, &sx.vertices, &near)
+            let scope = crate::refine::Scope::Near { near: &near, x_cells: &sy.vertices, y_cells: &sx.vertices };
+            crate::refine::map_of_pullback(psi, phi, c.as_ref(), None, scope)
         }
-        _ => crate::refine::map_of_pullback(psi, phi, c.as_ref(), None),
+        _ => crate::refine::map_of_pullback(psi, phi, c.as_ref(), None, crate::refine::Scope::Exact),
     })?;
     let r = MatchResult {
         map_xy: r.map_xy,

@@ -1,0 +1,44 @@
+//! Point-wise refinement of functional maps: ZoomOut (Melzi et al. 2019) on vertex samples, its
+//! bijective two-direction variant (the discrete solver of Ren, Melzi, Wonka, Ovsjanikov 2021
+//! with bijectivity and coupling terms), and the quality of point maps (orientation agreement,
+//! metric distortion).
+//!
+//! **Conventions.** A point map π: X → Y is `map_xy` (length n, for every vertex of X a vertex of
+//! Y). Its pull-back functional map `C_yx = Φᵀ A_X Π Ψ` (k_X × k_Y) takes the coefficients of a
+//! function g on Y (in Ψ, m × k_Y) to those of g ∘ π on X (in Φ, n × k_X) — pyFM's `FM_12` with
+//! mesh1 = Y, and the transpose direction of the C of [`crate::fmap`]. Conversely, from C_yx the
+//! point map is read off by nearest neighbours ([`map_of_pullback`]). Estimating the map X → Y through
+//! its own pull-back (rather than through the push-forward C of the opposite direction) is the
+//! direction ZoomOut's analysis is for, and measurably better (EXPERIMENTS.md).
+//!
+//! **Samples.** ZoomOut's functional maps only need the point map on a few thousand vertices
+//! (Melzi et al. §4.4): on a sample S of X with weights w (the area of each sample's Voronoi
+//! cell), C_yx is the weighted least-squares solution of Φ_S C ≈ Ψ_π(S). With every vertex and
+//! w = A_X this is exactly Φᵀ A_X Π Ψ.
+//!
+//! **Search.** Every point map is searched as a [`Scope`] says: among every vertex of Y
+//! ([`Scope::Exact`]), or near a coarse map between cells of both shapes ([`Scope::Near`]) for
+//! pairs of 10⁵–10⁶ vertices.
+//!
+//! **Files, by concern.** `pullback.rs`: pull-back maps and the point maps read off them
+//! ([`pullback`], [`map_of_pullback`], [`Scope`], [`Near`]); `zoomout.rs`: ZoomOut on samples
+//! ([`zoomout`]); `bijective.rs`: bijective ZoomOut and the bijective polish
+//! ([`bijective_zoomout`], [`bijective_polish`]); `quality.rs`: the quality of a point map
+//! ([`metric_distortion`], [`orientation_agreement`] and their estimates around samples,
+//! [`vertex_orientation`], [`repair_mirrored`]).
+
+mod bijective;
+mod pullback;
+mod quality;
+mod zoomout;
+
+pub use bijective::{bijective_polish, bijective_zoomout, BijectiveOptions, POLISH_BIJECTIVITY};
+pub use pullback::{map_of_pullback, pullback, Near, Scope};
+pub use quality::{
+    incident_vertices, low_pass, metric_distortion, metric_distortion_around, orientation_agreement,
+    orientation_agreement_around, repair_mirrored, vertex_orientation,
+};
+pub use zoomout::{zoomout, ZoomOutOptions};
+
+#[cfg(test)]
+mod tests;

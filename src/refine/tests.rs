@@ -1,0 +1,117 @@
+use super::*;
+use crate::laplacian::cotangent;
+use crate::primitives::bumpy_sphere;
+use crate::shape::TriMesh;
+use crate::spatial::farthest_point_samples;
+use crate::spatial::Samples;
+use crate::spectral::{eigen_basis, SpectralOptions};
+use faer::Mat;
+
+#[test]
+fn zoomout_recovers_a_permutation_from_a_coarse_start_on_samples() {
+    let x = bumpy_sphere(3);
+    let n = x.n_vertices();
+    let perm: Vec<usize> = (0..n).map(|i| (i * 101 + 7) % n).collect(); // vertex i of X is vertex perm[i] of Y
+    let mut inv = vec![0; n];
+    for (i, &p) in perm.iter().enumerate() {
+        inv[p] = i;
+    }
+    let y = x.permuted(&inv).unwrap();
+    assert_eq!(y.vertices()[perm[17]], x.vertices()[17]);
+    let basis = |m: &TriMesh| eigen_basis(&cotangent(m).unwrap(), &SpectralOptions::new(40), None).unwrap().0;
+    let (bx, by) = (basis(&x), basis(&y));
+    let (phi, psi) = (bx.eigenvectors.as_ref(), by.eigenvectors.as_ref());
+    let full = pullback(phi, psi, &Samples::all(&bx.mass), &perm, 40, 40).unwrap();
+    let c0 = full.submatrix(0, 0, 4, 4).to_owned();
+    let samples = farthest_point_samples(x.vertices(), &bx.mass, 300).unwrap();
+    assert_eq!(samples.len(), 300);
+    let total: f64 = samples.weights.iter().sum();
+    assert!((total - bx.mass.iter().sum::<f64>()).abs() < 1e-12);
+    let c = zoomout(phi, psi, &samples, c0.as_ref(), &ZoomOutOptions { k_final: 40, step: 3 }, Scope::Exact).unwrap();
+    let map = map_of_pullback(phi, psi, c.as_ref(), None, Scope::Exact).unwrap();
+    assert_eq!(c.nrows(), 40);
+    assert_eq!(map, perm, "ZoomOut on samples must recover the permutation");
+    // The identity permutation is orientation-preserving; the same map read on a mirrored
+    // copy of Y is orientation-reversing.
+    let normals = y.vertex_normals();
+    let s = orientation_agreement(&x, y.vertices(), &normals, &map).unwrap();
+    assert!(s > 0.99, "agreement {s}");
+    let ym: Vec<[f64; 3]> = y.vertices().iter().map(|p| [-p[0], p[1], p[2]]).collect();
+    let nm: Vec<[f64; 3]> = normals.iter().map(|p| [-p[0], p[1], p[2]]).collect();
+    let s = orientation_agreement(&x, &ym, &nm, &map).unwrap();
+    assert!(s < -0.99, "mirrored agreement {s}");
+}
+
+#[test]
+fn distortion_and_orientation_around_samples_estimate_the_whole() {
+    let x = bumpy_sphere(4);
+    let n = x.n_vertices();
+    let mass = vec![1.0; n];
+    // A map that is right on one half and sends the other half to one vertex.
+    let map: Vec<usize> = (0..n).map(|i| if x.vertices()[i][0] > 0.0 { i } else { 0 }).collect();
+    let normals = x.vertex_normals();
+    let (whole_d, whole_o) = (
+        metric_distortion(&x, x.vertices(), 1.0, &map).unwrap(),
+        orientation_agreement(&x, x.vertices(), &normals, &map).unwrap(),
+    );
+    // Around every vertex: exactly the whole.
+    let all: Vec<usize> = (0..n).collect();
+    assert_eq!(incident_vertices(&x, &all), all);
+    assert!((metric_distortion_around(&x, x.vertices(), 1.0, &map, &all).unwrap() - whole_d).abs() < 1e-14);
+    assert!((orientation_agreement_around(&x, x.vertices(), &normals, &map, &all).unwrap() - whole_o).abs() < 1e-14);
+    // Around 60 farthest-point samples, with the map known on their one-rings only: close.
+    let centres = farthest_point_samples(x.vertices(), &mass, 60).unwrap().vertices;
+    let patch = incident_vertices(&x, &centres);
+    assert!(patch.len() > centres.len() && patch.len() < n / 2, "{} of {n}", patch.len());
+    let mut partial = vec![0usize; n];
+    patch.iter().for_each(|&v| partial[v] = map[v]);
+    let d = metric_distortion_around(&x, x.vertices(), 1.0, &partial, &centres).unwrap();
+    let o = orientation_agreement_around(&x, x.vertices(), &normals, &partial, &centres).unwrap();
+    assert!((d - whole_d).abs() < 0.25 * whole_d, "{d} vs {whole_d}");
+    assert!((o - whole_o).abs() < 0.25, "{o} vs {whole_o}");
+    assert!(whole_d > 0.1 && metric_distortion_around(&x, x.vertices(), 1.0, &all, &centres).unwrap() == 0.0);
+    assert!(metric_distortion_around(&x, x.vertices(), 1.0, &map, &[n]).is_err());
+    assert!(orientation_agreement_around(&x, x.vertices(), &normals, &map, &[n]).is_err());
+}
+
+#[test]
+fn bijective_polish_repairs_a_noisy_map() {
+    let x = bumpy_sphere(3);
+    let n = x.n_vertices();
+    let perm: Vec<usize> = (0..n).map(|i| (i * 101 + 7) % n).collect();
+    let mut inv = vec![0; n];
+    for (i, &p) in perm.iter().enumerate() {
+        inv[p] = i;
+    }
+    let y = x.permuted(&inv).unwrap();
+    let basis = |m: &TriMesh| eigen_basis(&cotangent(m).unwrap(), &SpectralOptions::new(30), None).unwrap().0;
+    let (bx, by) = (basis(&x), basis(&y));
+    let (phi, psi) = (bx.eigenvectors.as_ref(), by.eigenvectors.as_ref());
+    let truth = pullback(phi, psi, &Samples::all(&bx.mass), &perm, 30, 30).unwrap();
+    // A deterministic perturbation of the true map.
+    let noisy = Mat::from_fn(30, 30, |i, j| truth[(i, j)] + 0.15 * (((i * 31 + j * 17) % 13) as f64 / 6.0 - 1.0));
+    let agreement = |m: &[usize]| m.iter().zip(&perm).filter(|(a, b)| a == b).count() as f64 / n as f64;
+    let plain = agreement(&map_of_pullback(phi, psi, noisy.as_ref(), None, Scope::Exact).unwrap());
+    assert!(plain < 0.95, "the perturbation must break the plain read-off ({plain})");
+    let (sx, sy) = (
+        farthest_point_samples(x.vertices(), &bx.mass, 300).unwrap(),
+        farthest_point_samples(y.vertices(), &by.mass, 300).unwrap(),
+    );
+    let (c, map) = bijective_polish(phi, psi, &sx, &sy, noisy.as_ref(), 3, Scope::Exact).unwrap();
+    assert_eq!(c.nrows(), 30);
+    let polished = agreement(&map);
+    assert!(polished > 0.99 && polished > plain, "polish {polished}, plain read-off {plain}");
+    assert!(bijective_polish(phi, psi, &sx, &sy, noisy.submatrix(0, 0, 30, 20), 1, Scope::Exact).is_err());
+}
+
+#[test]
+fn pullback_of_all_vertices_is_the_mass_projection() {
+    let x = bumpy_sphere(2);
+    let b = eigen_basis(&cotangent(&x).unwrap(), &SpectralOptions::new(10), None).unwrap().0;
+    let phi = b.eigenvectors.as_ref();
+    let id: Vec<usize> = (0..x.n_vertices()).collect();
+    let c = pullback(phi, phi, &Samples::all(&b.mass), &id, 10, 10).unwrap();
+    assert!((&c - Mat::<f64>::identity(10, 10)).norm_max() < 1e-10);
+    assert!(pullback(phi, phi, &Samples::all(&b.mass), &id[1..], 10, 10).is_err());
+    assert!(farthest_point_samples(x.vertices(), &b.mass, 0).is_err());
+}
