@@ -1,8 +1,11 @@
 //! Argument groups and value enums shared by the commands, declared once, and the defaults
 //! they take from the library.
 
-#[allow(unused_imports)]
-use super::*;
+use std::path::PathBuf;
+
+use clap::ValueEnum;
+
+use funcorr::spectral::BasisCache;
 
 #[derive(Clone, Copy, ValueEnum)]
 pub(crate) enum LaplacianChoice {

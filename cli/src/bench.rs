@@ -18,7 +18,8 @@ use funcorr::experiments::{run_sweep, Sterile, Sweep, SweepRow, SweepSettings};
 use funcorr::io::staged::StagedDir;
 use funcorr::{Error, Result};
 
-use super::{pipeline_options, CacheArgs, GeodesicsChoice, MethodChoice, PipelineArgs, ScalingChoice};
+use crate::args::{CacheArgs, GeodesicsChoice, MethodChoice, PipelineArgs, ScalingChoice};
+use crate::options::pipeline_options;
 
 /// Arguments of `funcorr bench`.
 #[derive(clap::Args)]

@@ -1,7 +1,15 @@
 //! `funcorr demo`: the default pipeline on the bundled FAUST pair.
 
-#[allow(unused_imports)]
-use super::*;
+use std::path::Path;
+use std::time::Instant;
+
+use funcorr::shape::{Shape, TriMesh};
+use funcorr::spectral::{Basis, SpectralOptions};
+use funcorr::{laplacian, spectral, Error, Result};
+
+use crate::args::{DEFAULT_DATA, DEFAULT_SIZE, DEFAULT_VIEW};
+use crate::output::{describe, parse_size, write_colour_transfer, write_map_files};
+use crate::spectrum::progress_bar;
 
 /// Ground-truth template correspondences of the demo pair (1-based vertex ids; line i of X's file
 /// corresponds to line i of Y's; `.sym` is the left–right mirrored version).

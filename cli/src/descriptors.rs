@@ -1,7 +1,15 @@
 //! `funcorr descriptors`: HKS, WKS, heat kernel maps, segments and regions of a shape.
 
-#[allow(unused_imports)]
-use super::*;
+use std::path::{Path, PathBuf};
+
+use clap::ValueEnum;
+
+use funcorr::shape::Shape;
+use funcorr::{Error, Result};
+
+use crate::args::{CacheArgs, LaplacianArgs, SegmentationArgs};
+use crate::options::{persistence_labels, shape_basis};
+use crate::Stages;
 
 #[derive(Clone, Copy, PartialEq, ValueEnum)]
 pub(crate) enum DescriptorKind {

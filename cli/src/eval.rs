@@ -1,7 +1,11 @@
 //! `funcorr eval`: geodesic error of a map against ground truth.
 
-#[allow(unused_imports)]
-use super::*;
+use std::path::{Path, PathBuf};
+
+use funcorr::shape::Shape;
+use funcorr::{Error, Result};
+
+use crate::args::GeodesicsChoice;
 
 #[derive(clap::Args)]
 pub(crate) struct EvalArgs {

@@ -1,7 +1,9 @@
 //! `funcorr info`: facts about a shape file.
 
-#[allow(unused_imports)]
-use super::*;
+use std::path::Path;
+
+use funcorr::shape::{Shape, TriMesh};
+use funcorr::Result;
 
 pub(crate) fn info(path: &Path, json: bool) -> Result<()> {
     let shape = Shape::load(path)?;

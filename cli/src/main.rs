@@ -1,17 +1,18 @@
 //! The `funcorr` command-line tool: a thin layer over the library.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
-use clap::{Parser, Subcommand, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
+use clap::{Parser, Subcommand};
 
-use funcorr::io::npy::{write_npz, NpzArray};
-use funcorr::laplacian::{self, Bandwidth, KnnOptions, Laplacian, VertexWeights};
-use funcorr::shape::{Shape, TriMesh};
-use funcorr::spectral::{self, Basis, BasisCache, SpectralOptions};
 use funcorr::{Error, Result};
+
+use crate::descriptors::DescriptorArgs;
+use crate::eval::EvalArgs;
+use crate::match_cmd::MatchArgs;
+use crate::regions::RegionArgs;
+use crate::spectrum::SpectrumArgs;
 
 /// Dense shape correspondence with functional maps (Kovnatsky et al., CVPR 2015).
 #[derive(Parser)]
@@ -85,7 +86,7 @@ macro_rules! outln {
             if e.kind() == std::io::ErrorKind::BrokenPipe {
                 std::process::exit(0);
             }
-            return Err(Error::io("<stdout>", e));
+            return Err(funcorr::Error::io("<stdout>", e));
         }
     }};
 }
@@ -98,40 +99,22 @@ mod eval;
 mod info;
 mod match_cmd;
 mod options;
+mod output;
 mod regions;
 mod spectrum;
 mod view;
 
-#[allow(unused_imports)]
-use args::*;
-#[allow(unused_imports)]
-use demo::*;
-#[allow(unused_imports)]
-use descriptors::*;
-#[allow(unused_imports)]
-use eval::*;
-#[allow(unused_imports)]
-use info::*;
-#[allow(unused_imports)]
-use match_cmd::*;
-#[allow(unused_imports)]
-use options::*;
-#[allow(unused_imports)]
-use regions::*;
-#[allow(unused_imports)]
-use spectrum::*;
-
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Info { shape, json } => info(&shape, json),
-        Command::Spectrum(args) => spectrum(&args),
-        Command::Descriptors(args) => descriptors(&args),
-        Command::Regions(args) => regions(&args),
-        Command::Match(args) => match_shapes(&args),
-        Command::Eval(args) => eval(&args),
+        Command::Info { shape, json } => info::info(&shape, json),
+        Command::Spectrum(args) => spectrum::spectrum(&args),
+        Command::Descriptors(args) => descriptors::descriptors(&args),
+        Command::Regions(args) => regions::regions(&args),
+        Command::Match(args) => match_cmd::match_shapes(&args),
+        Command::Eval(args) => eval::eval(&args),
         Command::View(args) => view::view(&args),
-        Command::Demo { out, k } => demo(&out, k),
+        Command::Demo { out, k } => demo::demo(&out, k),
         Command::Bench(args) => bench::bench(&args),
         Command::Reproduce { what } => bench::reproduce(&what),
     };

@@ -1,7 +1,19 @@
 //! From command-line arguments to library calls: Laplacians, bases, data and match options.
 
-#[allow(unused_imports)]
-use super::*;
+use std::path::Path;
+
+use clap::ValueEnum;
+
+use funcorr::laplacian::{Bandwidth, KnnOptions, Laplacian, VertexWeights};
+use funcorr::shape::Shape;
+use funcorr::spectral::{Basis, SpectralOptions};
+use funcorr::{spectral, Error, Result};
+
+use crate::args::{
+    CacheArgs, ExtractChoice, FormChoice, InitChoice, LaplacianArgs, LaplacianChoice, MaskChoice, MethodChoice,
+    OptimizerChoice, OrientationChoice, PipelineArgs, Refine, SegmentationArgs, WeightsChoice,
+};
+use crate::Stages;
 
 /// Persistence segmentation of a shape (labels 1..=s, one per vertex).
 pub(crate) fn persistence_labels(

@@ -1,7 +1,16 @@
 //! `funcorr regions`: matched regions (persistence segments or MSER) of two shapes.
 
-#[allow(unused_imports)]
-use super::*;
+use std::path::PathBuf;
+
+use clap::ValueEnum;
+
+use funcorr::shape::Shape;
+use funcorr::{Error, Result};
+
+use crate::args::{CacheArgs, LaplacianArgs, SegmentationArgs};
+use crate::descriptors::need;
+use crate::options::{persistence_labels, shape_basis};
+use crate::Stages;
 
 #[derive(Clone, Copy, PartialEq, ValueEnum)]
 pub(crate) enum RegionKind {

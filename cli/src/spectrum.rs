@@ -1,7 +1,19 @@
 //! `funcorr spectrum`: Laplacian eigenpairs of a shape.
 
-#[allow(unused_imports)]
-use super::*;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressStyle};
+
+use funcorr::io::npy::{write_npz, NpzArray};
+use funcorr::laplacian::Laplacian;
+use funcorr::shape::Shape;
+use funcorr::spectral::SpectralOptions;
+use funcorr::{spectral, Error, Result};
+
+use crate::args::{CacheArgs, LaplacianArgs};
+use crate::options::build_laplacian;
+use crate::Stages;
 
 #[derive(clap::Args)]
 pub(crate) struct SpectrumArgs {

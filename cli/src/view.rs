@@ -3,10 +3,15 @@
 //! write beside their other outputs. The page itself is written by the library
 //! (`funcorr::viz::html`).
 
-#[allow(unused_imports)]
-use super::*;
+use std::path::{Path, PathBuf};
 
+use funcorr::shape::Shape;
 use funcorr::viz::html::{Field, Side, VertexErrors, Viewer, ViewerShape};
+use funcorr::{Error, Result};
+
+use crate::args::GeodesicsChoice;
+use crate::eval::{read_ground_truth, target_distances, target_surface};
+use crate::output::mesh_data;
 
 #[derive(clap::Args)]
 pub(crate) struct ViewArgs {
