@@ -13,6 +13,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyString, PyTuple};
 
+use funcorr::laplacian::Laplacian;
 use funcorr::shape::{PointSet, Shape, TriMesh};
 
 /// A 1-D float64 numpy array.
@@ -260,4 +261,18 @@ pub(crate) fn points3_out<'py>(py: Python<'py>, v: &[[f64; 3]]) -> Bound<'py, Py
 
 pub(crate) fn faces_out<'py>(py: Python<'py>, f: &[[u32; 3]]) -> Bound<'py, PyArray2<i64>> {
     Array2::from_shape_fn((f.len(), 3), |(i, j)| f[i][j] as i64).into_pyarray(py)
+}
+
+/// A sparse matrix as numpy CSR parts (indptr, indices, data).
+pub(crate) type Csr<'py> = (I64s<'py>, I64s<'py>, F64s<'py>);
+
+/// W (symmetric, stored by columns) as CSR parts: the columns of a symmetric matrix are its rows.
+pub(crate) fn csr_parts<'py>(py: Python<'py>, lap: &Laplacian) -> Csr<'py> {
+    let w = lap.w.as_ref();
+    let s = w.symbolic();
+    (
+        PyArray1::from_vec(py, s.col_ptr().iter().map(|&p| p as i64).collect()),
+        PyArray1::from_vec(py, s.row_idx().iter().map(|&i| i as i64).collect()),
+        PyArray1::from_vec(py, w.val().to_vec()),
+    )
 }

@@ -9,25 +9,11 @@ use numpy::{PyArray1, PyArray2, PyArray3, PyReadwriteArray2};
 use pyo3::prelude::*;
 
 use funcorr::geodesic::{Distances, GeodesicMethod};
-use funcorr::laplacian::Laplacian;
 use funcorr::shape::{Shape, TriMesh};
 
-use crate::arrays::{self, value_error, F64m, F64s, I64m, I64s};
+use crate::arrays::{self, csr_parts, value_error, Csr, F64m, F64s, I64m};
 use crate::compute;
 use crate::prepared::{basis_arg, geometry_arg, mesh_arg, prepared_arg as prepared};
-
-type Csr<'py> = (I64s<'py>, I64s<'py>, F64s<'py>);
-
-/// W (symmetric, stored by columns) as CSR parts: the columns of a symmetric matrix are its rows.
-pub(crate) fn csr_parts<'py>(py: Python<'py>, lap: &Laplacian) -> Csr<'py> {
-    let w = lap.w.as_ref();
-    let s = w.symbolic();
-    (
-        PyArray1::from_vec(py, s.col_ptr().iter().map(|&p| p as i64).collect()),
-        PyArray1::from_vec(py, s.row_idx().iter().map(|&i| i as i64).collect()),
-        PyArray1::from_vec(py, w.val().to_vec()),
-    )
-}
 
 /// `read_mesh(path) -> (V (n, 3) float64, F (f, 3) int64)`; F is (0, 3) for point clouds.
 #[pyfunction]

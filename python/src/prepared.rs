@@ -88,7 +88,7 @@ impl PyPrepared {
     }
     /// The stiffness matrix W as CSR parts (indptr, indices, data) (W is symmetric).
     fn _stiffness<'py>(&self, py: Python<'py>) -> (I64s<'py>, I64s<'py>, F64s<'py>) {
-        crate::functions::csr_parts(py, &self.inner.laplacian)
+        arrays::csr_parts(py, &self.inner.laplacian)
     }
     /// Whether the shape is a triangle mesh.
     #[getter]
