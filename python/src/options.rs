@@ -217,7 +217,8 @@ pub(crate) fn match_options(o: &mut Opts, rich: bool) -> PyResult<(MatchOptions,
             &[("none", Refine::None), ("icp", Refine::Icp), ("zoomout", Refine::Zoomout)],
         )?),
     };
-    // The L1 samples and the stopping rule on the point map (issue 12), as the CLI's
+    // The L1 samples and the stopping rule on the point map (EXPERIMENTS.md, "Speed options of the
+    // completion method and large shapes"), as the CLI's
     // --l1-samples, --map-check-every, --map-tolerance.
     if let Some(samples) = o.usize("l1_samples")? {
         completion.l1_sampling = funcorr::completion::L1Sampling::farthest(samples);
@@ -237,7 +238,8 @@ pub(crate) fn match_options(o: &mut Opts, rich: bool) -> PyResult<(MatchOptions,
             completion.params.l1_precision = P::F32;
         }
     }
-    // The conditioning options of issue 12, as the CLI's --precondition, --xi-stages, --multiscale.
+    // The conditioning options (EXPERIMENTS.md, "Conditioning the completion problem"), as the CLI's
+    // --precondition, --xi-stages, --multiscale.
     {
         use funcorr::completion::Precondition as P;
         let table = [("off", P::Off), ("quadratic", P::Quadratic), ("full", P::Full)];

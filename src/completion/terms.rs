@@ -94,7 +94,8 @@ pub fn commutativity(a: MatRef<f64>, b: MatRef<f64>, lambda_x: &[f64], lambda_y:
     chain_c(value, g.as_ref(), a, b)
 }
 
-/// Optional axiomatic prior (issue 11), not part of the paper's (11): the functional-map energy
+/// Optional axiomatic prior (EXPERIMENTS.md, "The completion method with the same terms (scarce
+/// data)"), not part of the paper's (11): the functional-map energy
 /// E of [`crate::fmap::energy`] without its descriptor term — Laplacian commutativity (standard or
 /// resolvent mask), descriptor commutativity and orientation — at the leading k_c × k_c block of
 /// the functional map between the input bases, s C_c (s = [`super::Problem::c_scale`]).

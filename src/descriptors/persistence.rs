@@ -39,7 +39,8 @@
 //! segments), smaller ones raise the noise (at t = 0.1/λ₁ the sixth peak reaches 0.055).
 //!
 //! [`average_geodesic_distance`] is an alternative (Skraba et al. use both), computed with the
-//! heat method (graph distances before issue 16); on the same shapes it gives 5 segments for
+//! heat method (before, graph distances: EXPERIMENTS.md, "The AGD function on geodesics"); on
+//! the same shapes it gives 5 segments for
 //! τ ∈ [0.1, 0.2] but 13 at τ = 0.05 (segment agreement with AGD: EXPERIMENTS.md).
 //!
 //! # Matching
@@ -364,7 +365,7 @@ pub fn average_geodesic_distance(mesh: &TriMesh, sources: usize) -> Result<Vec<f
 /// [`average_geodesic_distance`] with the distances of `method`: exact (MMP; 32 full solves, a
 /// few seconds on 5,000 vertices), heat (one factorization, then two triangular solves per
 /// source), or Dijkstra on the mesh edges (overestimates by about 6 %; the function used before
-/// issue 16).
+/// the heat method, EXPERIMENTS.md, "The AGD function on geodesics").
 pub fn average_geodesic_distance_with(mesh: &TriMesh, sources: usize, method: GeodesicMethod) -> Result<Vec<f64>> {
     let area = mesh.total_area();
     if area.is_nan() || area <= 0.0 {

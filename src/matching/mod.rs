@@ -125,8 +125,8 @@ pub const DEFAULT_COMPLETION_MULTISCALE: usize = 2;
 /// scaling and a form: the paper's k', k and the form's default weights
 /// ([`CompletionOptions::paper`], [`CompletionOptions::with_form`]) plus the isometry prior
 /// ([`DEFAULT_COMPLETION_COMMUTATIVITY`] on the leading [`DEFAULT_COMPLETION_COMMUTATIVITY_K`]
-/// block), and for the subspace form (11) the speed settings of issue 12 measured to hold
-/// accuracy: the L1 term on
+/// block), and for the subspace form (11) the speed settings measured to hold accuracy
+/// (EXPERIMENTS.md, "The default completion setting"): the L1 term on
 /// [`DEFAULT_L1_SAMPLES`] farthest-point samples, its products in f32 with f64 sums
 /// ([`completion::Precision::F32`]), and a [`DEFAULT_COMPLETION_MULTISCALE`]-stage schedule.
 /// The iteration cap is [`DEFAULT_COMPLETION_ITERATIONS`].
