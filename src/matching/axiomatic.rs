@@ -621,8 +621,8 @@ fn spread(n: usize, rows: &[usize], images: &[usize]) -> Vec<usize> {
 /// orientation is ignored); the first candidate when no score could be measured (NaN).
 fn choose(candidates: &[Candidate], orientation: Orientation, score: impl Fn(&Candidate) -> f64) -> usize {
     let agrees = |c: &Candidate| match orientation {
-        Orientation::Preserve => !(c.orientation < 0.0),
-        Orientation::Reverse => !(c.orientation > 0.0),
+        Orientation::Preserve => c.orientation >= 0.0 || c.orientation.is_nan(),
+        Orientation::Reverse => c.orientation <= 0.0 || c.orientation.is_nan(),
         Orientation::Ignore => true,
     };
     let any = candidates.iter().any(agrees);
@@ -643,6 +643,7 @@ fn choose(candidates: &[Candidate], orientation: Orientation, score: impl Fn(&Ca
 /// The final refinement from `c_start` (C_yx): ZoomOut (or its bijective variant) to
 /// `p.refine.k_final`, then the polish. Returns (C_yx, map_xy, the samples of the restricted
 /// final searches) and appends its stage times.
+#[allow(clippy::type_complexity)]
 fn refine_from(
     x: &PreparedShape,
     y: &PreparedShape,

@@ -355,7 +355,7 @@ pub fn correct(
             break;
         }
         let j = energy(&next);
-        if !(j < best.0) {
+        if j.partial_cmp(&best.0) != Some(std::cmp::Ordering::Less) {
             break;
         }
         trace.push(anchored_distortion(dx, dy, &next));
