@@ -166,8 +166,8 @@ fn precision(args: &[usize]) {
         t64 / t32,
         flops
     );
-    let u = funcorr::linalg::a_b(psi.as_ref(), a.as_ref());
-    let v = funcorr::linalg::a_b(phi.as_ref(), b.as_ref());
+    let u = &psi * &a;
+    let v = &phi * &b;
     let f32m = |x: &Mat<f64>| Mat::<f32>::from_fn(x.nrows(), x.ncols(), |i, j| x[(i, j)] as f32);
     let (u32_, v32, psi32, phi32) = (f32m(&u), f32m(&v), f32m(&psi), f32m(&phi));
     let (g64, g32) = alternate(

@@ -30,7 +30,7 @@ pub mod fmap;
 pub mod geodesic;
 pub mod io;
 pub mod laplacian;
-pub mod linalg;
+pub(crate) mod linalg;
 pub mod matching;
 pub mod operators;
 pub mod optim;

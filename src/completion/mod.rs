@@ -50,14 +50,14 @@
 //! [`objective`] (their weighted sum), [`lbfgs`] and [`optimize`](mod@optimize) (L-BFGS with a
 //! strong-Wolfe line search, initializations), [`full`], [`fixed_rank`], [`convex`], [`solve`].
 
-pub mod convex;
-pub mod fixed_rank;
-pub mod full;
-pub mod l1;
-pub mod lbfgs;
-pub mod objective;
-pub mod optimize;
-pub mod solve;
+pub(crate) mod convex;
+pub(crate) mod fixed_rank;
+pub(crate) mod full;
+pub(crate) mod l1;
+pub(crate) mod lbfgs;
+pub(crate) mod objective;
+pub(crate) mod optimize;
+pub(crate) mod solve;
 pub mod terms;
 
 pub use l1::Precision;

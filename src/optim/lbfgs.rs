@@ -62,7 +62,7 @@ fn axpy_in_place(alpha: f64, x: &[f64], y: &mut [f64]) {
 
 /// A trial point of a line search along x + α p.
 #[derive(Clone, Debug)]
-pub struct LinePoint<V> {
+pub(crate) struct LinePoint<V> {
     /// The step α.
     pub alpha: f64,
     /// φ(α) = f(x + α p).
@@ -117,7 +117,7 @@ fn cubic_step(lo: &Trial, hi: &Trial) -> f64 {
 /// Returns the accepted point, which always satisfies sufficient decrease (Armijo,
 /// φ(α) ≤ φ(0) + c1 α φ'(0)); if the curvature condition |φ'(α)| ≤ −c2 φ'(0) is not met within
 /// the budget, the best sufficient-decrease point found is returned; `None` if there is none.
-pub fn line_search<V: Clone>(
+pub(crate) fn line_search<V: Clone>(
     phi: &mut dyn FnMut(f64) -> LinePoint<V>,
     f0: f64,
     d0: f64,

@@ -23,7 +23,7 @@ use serde::Serialize;
 pub mod lbfgs;
 pub mod rcg;
 
-pub use lbfgs::{LbfgsOptions, LinePoint};
+pub use lbfgs::LbfgsOptions;
 pub use rcg::{Beta, Manifold, Objective, RcgLineSearch, RcgOptions, StopRule};
 
 /// What an objective returns at a point: f itself (`f64`) or a richer record whose
