@@ -34,6 +34,10 @@ pub enum LaplacianChoice {
     Auto,
     /// Cotangent weights and barycentric mass (meshes).
     Cotangent,
+    /// The cotangent Laplacian of the mesh's intrinsic Delaunay triangulation
+    /// ([`crate::geodesic::intrinsic_delaunay_laplacian`]): non-negative weights on meshes with
+    /// obtuse or sliver triangles, the cotangent Laplacian itself on Delaunay meshes (meshes).
+    Intrinsic,
     /// The point-cloud Laplacian of local Delaunay fans over K neighbours (3-D points; a mesh is
     /// used as its vertices).
     Cloud {
@@ -214,9 +218,16 @@ pub fn build_laplacian(shape: &Shape, choice: LaplacianChoice) -> Result<(Laplac
         (LaplacianChoice::Auto | LaplacianChoice::Cotangent, Shape::Mesh(m)) => {
             Ok((laplacian::cotangent(m)?, Some(Surface::Mesh)))
         }
+        (LaplacianChoice::Intrinsic, Shape::Mesh(m)) => {
+            Ok((crate::geodesic::intrinsic_delaunay_laplacian(m)?, Some(Surface::Mesh)))
+        }
         (LaplacianChoice::Cotangent, Shape::Points(_)) => Err(Error::invalid(
             "laplacian",
             "cotan needs a triangle mesh; this shape has no faces (use the point-cloud Laplacian)",
+        )),
+        (LaplacianChoice::Intrinsic, Shape::Points(_)) => Err(Error::invalid(
+            "laplacian",
+            "intrinsic needs a triangle mesh; this shape has no faces (use the point-cloud Laplacian)",
         )),
         (LaplacianChoice::Auto, Shape::Points(p)) if p.dim() != 3 => {
             Ok((laplacian::knn_graph(p, &KnnOptions::default())?, None))

@@ -71,12 +71,38 @@ pub(crate) fn compute<T: Send>(py: Python<'_>, f: impl FnOnce() -> funcorr::Resu
 }
 
 /// Sets the number of threads each funcorr call uses (None or 0: the default, every core or
-/// `$FUNCORR_NUM_THREADS`). Each call runs on a pool of that many threads of its own.
+/// `$FUNCORR_NUM_THREADS`). Each call runs on a pool of that many threads of its own. A negative
+/// or non-integer count is a ValueError.
 #[pyfunction]
 #[pyo3(signature = (n=None))]
-fn set_num_threads(n: Option<usize>) {
-    NUM_THREADS.store(n.unwrap_or(0), Ordering::Relaxed);
+fn set_num_threads(n: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
+    let n = match n {
+        None => 0,
+        Some(v) if v.is_none() => 0,
+        Some(v) => {
+            let bad = || {
+                PyValueError::new_err(format!(
+                    "n: expected a number of threads ≥ 0 (0 or None: every core), got {}",
+                    v.repr().map(|r| r.to_string()).unwrap_or_default()
+                ))
+            };
+            if v.is_instance_of::<pyo3::types::PyBool>() {
+                return Err(bad());
+            }
+            let i: i64 = v.extract().map_err(|_| bad())?;
+            if !(0..=MAX_THREADS as i64).contains(&i) {
+                return Err(bad());
+            }
+            i as usize
+        }
+    };
+    NUM_THREADS.store(n, Ordering::Relaxed);
+    Ok(())
 }
+
+/// Most threads `set_num_threads` accepts (far above any machine's cores; beyond it a count is
+/// surely a mistake).
+const MAX_THREADS: usize = 1 << 16;
 
 /// The number of threads a funcorr call uses now (the setting, `$FUNCORR_NUM_THREADS`, or the
 /// size of rayon's global pool).

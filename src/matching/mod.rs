@@ -506,16 +506,8 @@ pub fn run_prepared(
             _ => None,
         };
         let points = x.positions().zip(y.positions());
-        let r = run_with_gradients(
-            &x.basis,
-            &y.basis,
-            Some((&x.laplacian, &y.laplacian)),
-            gradients,
-            points,
-            f,
-            g,
-            opts,
-        )?;
+        let r =
+            run_with_gradients(&x.basis, &y.basis, Some((&x.laplacian, &y.laplacian)), gradients, points, f, g, opts)?;
         return Ok(in_input_units(r, x, y));
     }
     let r = axiomatic::axiomatic_pipeline(x, y, f, g, &opts.axiomatic)?;
