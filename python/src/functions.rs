@@ -79,6 +79,45 @@ fn cotangent_laplacian<'py>(
     Ok((csr_parts(py, &lap), arrays::vec_out(py, lap.mass.clone())))
 }
 
+/// `intrinsic_laplacian(V, F) -> (indptr, indices, data, mass)`: the cotangent Laplacian of the
+/// mesh's intrinsic Delaunay triangulation.
+#[pyfunction]
+fn intrinsic_laplacian<'py>(
+    py: Python<'py>,
+    vertices: &Bound<'py, PyAny>,
+    faces: &Bound<'py, PyAny>,
+) -> PyResult<(Csr<'py>, Bound<'py, PyArray1<f64>>)> {
+    let mesh = arrays::mesh(vertices, faces, "V", "F")?;
+    let lap = compute(py, move || funcorr::geodesic::intrinsic_delaunay_laplacian(&mesh))?;
+    Ok((csr_parts(py, &lap), arrays::vec_out(py, lap.mass.clone())))
+}
+
+/// `nearest_rows(reference (r, d), query (q, d)) -> (q,)`: for every row of `query` the index of
+/// the nearest row of `reference` (Euclidean; the library's spectral-embedding search).
+#[pyfunction]
+fn nearest_rows<'py>(
+    py: Python<'py>,
+    reference: &Bound<'py, PyAny>,
+    query: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyArray1<i64>>> {
+    let r = arrays::matrix(reference, "reference")?;
+    let q = arrays::matrix(query, "query")?;
+    if r.ncols() != q.ncols() || r.nrows() == 0 || r.ncols() == 0 {
+        return Err(value_error(
+            "query",
+            format!(
+                "reference is {}×{} and query {}×{}: need the same number d ≥ 1 of columns and a reference row",
+                r.nrows(),
+                r.ncols(),
+                q.nrows(),
+                q.ncols()
+            ),
+        ));
+    }
+    let idx = compute(py, move || funcorr::pointwise::nearest_neighbors(r.as_ref(), q.as_ref()))?;
+    Ok(arrays::index_out(py, &idx))
+}
+
 /// `knn_laplacian(points, k=10, sigma=None, vertex_weights="identity")`: the paper's eq. (1).
 #[pyfunction]
 #[pyo3(signature = (points, k=10, sigma=None, vertex_weights="identity"))]
@@ -506,6 +545,8 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(write_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(cotangent_laplacian, m)?)?;
     m.add_function(wrap_pyfunction!(knn_laplacian, m)?)?;
+    m.add_function(wrap_pyfunction!(intrinsic_laplacian, m)?)?;
+    m.add_function(wrap_pyfunction!(nearest_rows, m)?)?;
     m.add_function(wrap_pyfunction!(cloud_laplacian, m)?)?;
     m.add_function(wrap_pyfunction!(hks, m)?)?;
     m.add_function(wrap_pyfunction!(wks, m)?)?;

@@ -180,11 +180,11 @@ fn needs_surface(opts: &funcorr::matching::MatchOptions) -> bool {
 fn check_surface(s: &Side, choice: funcorr::prepared::LaplacianChoice, name: &str) -> PyResult<()> {
     use funcorr::prepared::LaplacianChoice as L;
     let why = match s {
-        Side::Ready(p) if p.triangles().is_none() => Some("this PreparedShape has no surface".to_string()),
+        Side::Ready(p) if p.triangles().is_none() => Some("this PreparedShape has none".to_string()),
         Side::Ready(_) => None,
-        Side::Raw(_) if matches!(choice, L::Knn(_)) => Some("laplacian='knn' gives it no surface".to_string()),
+        Side::Raw(_) if matches!(choice, L::Knn(_)) => Some("laplacian='knn' gives it none".to_string()),
         Side::Raw(Shape::Points(p)) if p.dim() != 3 => {
-            Some(format!("got an array of shape ({}, {}), taken as {}-D points", p.len(), p.dim(), p.dim()))
+            Some(format!("got an array of shape ({}, {}) (taken as {}-D points)", p.len(), p.dim(), p.dim()))
         }
         Side::Raw(_) => None,
     };
@@ -193,7 +193,7 @@ fn check_surface(s: &Side, choice: funcorr::prepared::LaplacianChoice, name: &st
             name,
             format!(
                 "expected a mesh (V, F) or 3-D points of shape (n, 3): the axiomatic method's orientation term \
-                 needs a surface, and {why} (for feature data use method='fmap', or orientation='ignore')"
+                 needs a surface; {why} (for feature data use method='fmap', or orientation='ignore')"
             ),
         )),
         None => Ok(()),

@@ -102,19 +102,22 @@ def test_compat_conventions_agree_with_funcorr():
     model = FunctionalMapping(TriMesh(str(X_PATH)), TriMesh(str(Y_PATH)))
     model.preprocess(n_ev=(30, 30), n_descr=50, subsample_step=2)
     model.fit(w_descr=1, w_lap=1e-2, w_dcomm=1e-1)
-    # FM maps mesh1 → mesh2 (funcorr's C with X = mesh1), p2p_21 is funcorr's map_yx.
+    # FM maps mesh1 → mesh2 (funcorr's C with X = mesh1, in the meshes' units), p2p_21 is
+    # funcorr's map_yx (the same search, up to ties between equidistant rows).
     X, Y = model.mesh1._prepared, model.mesh2._prepared
     map_xy, map_yx = funcorr.maps_from_fmap(X, Y, model.FM)
-    assert np.array_equal(model.p2p_21, map_yx) and len(map_xy) == 4999
-    with pytest.raises(ValueError, match="n_ev"):
-        FunctionalMapping(TriMesh(str(X_PATH)), TriMesh(str(Y_PATH))).preprocess(n_ev=(20, 30)).fit()
+    assert np.mean(model.p2p_21 == map_yx) > 0.999 and len(map_xy) == 4999
+    assert np.isclose(abs(model.FM[0, 0]), np.sqrt(model.mesh2.area / model.mesh1.area), rtol=1e-9)
+    # Non-square maps (pyFM's n_ev=(k1, k2)): FM_12 is k2 × k1.
+    rect = FunctionalMapping(TriMesh(str(X_PATH)), TriMesh(str(Y_PATH))).preprocess(n_ev=(20, 30), n_descr=50)
+    assert rect.fit().FM.shape == (30, 20)
     with pytest.raises(ValueError, match="optinit"):
         model.fit(optinit="ones")
 
 
 def test_pyfm_13_workflow():
     """The workflow of pyFM 1.3 (FunctionalMapping's docstring in pyfmaps 1.3.1): the size given
-    to fit(K=...), FM_12, refinements returned, get_p2p(FM)."""
+    to fit(K=...), FM_12, refinements returned and FM_12 kept, get_p2p(FM)."""
     from funcorr.compat.pyfm import FunctionalMapping, TriMesh
 
     mesh1 = TriMesh.load(str(X_PATH), area_normalize=True, center=True)
@@ -134,7 +137,10 @@ def test_pyfm_13_workflow():
     for p in (p2p, p2p_icp, p2p_zo):
         assert p.shape == (5000,) and p.max() < 4999
     assert not np.array_equal(p2p, p2p_zo)
-    # pyFM < 1.3: refinements become the current map (FM_type), positional zoomout_refine(nit, step).
-    assert model.FM_type == "zoomout" and model.FM.shape == (90, 90)
+    # pyFM 1.3: get_p2p() reads FM_12, whatever was refined.
+    assert np.array_equal(model.get_p2p(), p2p)
+    # The earlier API in the same model: refinements become the current map (FM_type),
+    # positional zoomout_refine(nit, step).
     model.change_FM_type("classic")
-    assert model.zoomout_refine(4, 5).shape == (60, 60)
+    assert model.zoomout_refine(4, 5).shape == (60, 60) and model.FM_type == "zoomout"
+    assert model.FM.shape == (60, 60)
