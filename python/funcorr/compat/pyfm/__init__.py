@@ -21,7 +21,10 @@ Conventions are pyFM's: ``FM_12`` (k2 × k1) maps functions on mesh1 to mesh2 �
 ``transfer(f) = mesh2.unproject(FM_12 @ mesh1.project(f))`` — i.e. funcorr's ``C`` with X = mesh1
 and Y = mesh2; ``p2p_21 = model.get_p2p()`` has length n2 and gives for every vertex of mesh2 a
 vertex of mesh1 (funcorr's ``map_yx``); ``eval.accuracy(p2p_21, gt_p2p, D1)`` measures on mesh1.
-Everything is in the meshes' own units (``C[0, 0] = ±√(area2 / area1)``), as in pyFM.
+Everything is in the meshes' own units (``C[0, 0] = ±√(area2 / area1)``), as in pyFM, and so
+is the search behind ``get_p2p``: like pyFM's, its result depends on the meshes' areas unless
+they are equal (``area_normalize=True``); funcorr's own :func:`funcorr.maps_from_fmap` searches
+between unit-area bases and gives the same maps on meshes of equal area.
 
 Computed by funcorr: Laplacians and spectra (block Lanczos, Φᵀ A Φ = I), geodesic distances,
 the functional-map fit, the nearest-neighbour search of every point map, mesh files. As pyFM:

@@ -3,6 +3,9 @@
 Spectra, Laplacians, geodesics and file reading are funcorr's; the small geometric quantities
 (normals, face areas, gradients) are numpy formulas as in pyFM. Units: everything is in the
 mesh's own units, as in pyFM (``area_normalize=True`` scales the mesh to unit area first).
+
+One module of ~800 lines because it is one class, pyFM's ``TriMesh`` with both of its APIs (the
+file writers at the end are its ``save``'s).
 """
 
 from __future__ import annotations
