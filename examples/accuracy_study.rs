@@ -16,7 +16,9 @@
 //! `mask=std|res`, `orient=p|r|i`, `ug=0|1` unit gradients, `signed=N`, `nd=N` WKS count,
 //! `kd=N` WKS eigenpairs, `ss=N` keep every ss-th WKS, `zo=K` final ZoomOut size (0 none),
 //! `zs=S` its step, `ns=N` its samples, `zp=K` probe size, `bij=W` the bijective ZoomOut with
-//! bijectivity weight W instead of ZoomOut, `pol=N` rounds of the bijective polish (0 none).
+//! bijectivity weight W instead of ZoomOut, `pol=N` rounds of the bijective polish (0 none),
+//! `bs=N` samples of the basin search (0: none, candidates by edge distortion), `br=N` its
+//! correction rounds, `banch=N` its anchors on Y.
 //!
 //! Point clouds: `CLOUD=y` (Y given as its vertices), `CLOUD=both`; `RESAMPLE=N` draws N points
 //! uniformly on the surface instead (vertices not shared). Errors are then measured on Y's mesh
@@ -83,6 +85,9 @@ impl Variant {
                 "bij" => a.bijective = f(),
                 "cp" => a.continue_probe = val == "1",
                 "pol" => a.polish = u(),
+                "bs" => a.search.samples = u(),
+                "br" => a.search.rounds = u(),
+                "banch" => a.search.anchors = u(),
                 "nd" => nd = u(),
                 "kd" => kd = u(),
                 "ss" => ss = u(),
@@ -223,9 +228,20 @@ fn main() -> Result<()> {
                         _ => (f64::NAN, f64::NAN),
                     };
                     let chosen = r.candidates.as_ref().map_or(0, |(c, i)| c[*i].k);
+                    let search = match (&r.correction, &r.candidates) {
+                        (Some(c), Some((cands, i))) => format!(
+                            "{{\"moved\":{},\"rounds\":{},\"start\":{:.4},\"end\":{:.4},\"corrected\":{}}}",
+                            c.moved,
+                            c.trace.len() - 1,
+                            c.trace[0],
+                            c.trace.iter().copied().fold(f64::INFINITY, f64::min),
+                            cands[*i].corrected_from.is_some()
+                        ),
+                        _ => "null".to_string(),
+                    };
                     let stages: Vec<String> = r.stages.iter().map(|(n, s)| format!("\"{n}\":{s:.3}")).collect();
                     format!(
-                        "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"variant\":\"{}\",\"direct\":{d:.3},\"sym\":{s:.3},\"seconds\":{secs:.3},\"agree\":{agree:.3},\"distortion\":{dist:.4},\"k\":{chosen},\"stages\":{{{}}}}}",
+                        "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"variant\":\"{}\",\"direct\":{d:.3},\"sym\":{s:.3},\"seconds\":{secs:.3},\"agree\":{agree:.3},\"distortion\":{dist:.4},\"k\":{chosen},\"search\":{search},\"stages\":{{{}}}}}",
                         v.name,
                         stages.join(",")
                     )

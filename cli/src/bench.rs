@@ -60,13 +60,40 @@ pub(crate) struct BenchArgs {
     pipe: PipelineArgs,
     #[command(flatten)]
     cache: CacheArgs,
+    #[command(flatten)]
+    html: HtmlArgs,
     /// Output directory: pairs.csv, pairs.json, maps/, summary.csv, summary.md, summary.json,
-    /// curves.png.
+    /// curves.png, index.html (with pairs/ and viewer/).
     #[arg(short, long)]
     output: PathBuf,
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
+}
+
+/// The HTML report of a run: index.html and viewer pages.
+#[derive(clap::Args)]
+pub(crate) struct HtmlArgs {
+    /// Viewer pages linked from index.html: `N` for the N runs of each method with the largest
+    /// mean error, or `all` (every pair and method).
+    #[arg(long, default_value = "10", value_name = "N|all")]
+    html: String,
+    /// Do not write index.html and its viewer pages.
+    #[arg(long)]
+    no_html: bool,
+}
+
+impl HtmlArgs {
+    /// Which pages to write (None: no HTML report); errors name `--html`.
+    fn pages(&self) -> Result<Option<funcorr::viz::report::Pages>> {
+        if self.no_html {
+            return Ok(None);
+        }
+        self.html.parse().map(Some).map_err(|e| match e {
+            Error::Invalid { msg, .. } => Error::invalid("--html", msg),
+            e => e,
+        })
+    }
 }
 
 fn method_name(m: MethodChoice) -> &'static str {
@@ -148,12 +175,21 @@ fn select_pairs(ds: &Dataset, file: Option<&Path>, limit: Option<usize>) -> Resu
     Ok(pairs)
 }
 
-/// Publishes a staged output directory (see `funcorr::io::staged`) and lists the files written.
-/// The run's tables, JSON and maps ([`Report::write`]) and its curves
-/// ([`funcorr::viz::plot::write_benchmark_curves`]) in `dir`; the paths written.
-fn write_report(report: &Report, dir: &Path, title: &str) -> Result<Vec<PathBuf>> {
+/// The run's tables, JSON and maps ([`Report::write`]), its curves
+/// ([`funcorr::viz::plot::write_benchmark_curves`]) and, unless `pages` is None, its HTML report
+/// with viewer pages ([`funcorr::viz::report::write_html_report`]) in `dir`; the paths written.
+fn write_report(
+    report: &Report,
+    ds: &Dataset,
+    dir: &Path,
+    title: &str,
+    pages: Option<funcorr::viz::report::Pages>,
+) -> Result<Vec<PathBuf>> {
     let mut written = report.write(dir, title)?;
     written.extend(funcorr::viz::plot::write_benchmark_curves(report, dir, title)?);
+    if let Some(pages) = pages {
+        written.extend(funcorr::viz::report::write_html_report(report, ds, dir, title, pages)?);
+    }
     Ok(written)
 }
 
@@ -168,6 +204,7 @@ fn publish(staged: StagedDir, paths: &[PathBuf]) -> Result<()> {
 
 pub(crate) fn bench(args: &BenchArgs) -> Result<()> {
     let data = args.data.parse::<PairDataSpec>()?.for_dataset()?;
+    let pages = args.html.pages()?;
     let ds = Dataset::open(&args.dataset)?;
     let pairs = select_pairs(&ds, args.pairs.as_deref(), args.limit)?;
     let pool = thread_pool(args.jobs)?;
@@ -194,7 +231,7 @@ pub(crate) fn bench(args: &BenchArgs) -> Result<()> {
             if report.symmetric { ", symmetric" } else { "" }
         )
     });
-    let written = write_report(&report, staged.path(), &title).map_err(|e| staged.attribute(e))?;
+    let written = write_report(&report, &ds, staged.path(), &title, pages).map_err(|e| staged.attribute(e))?;
     outln!("{title} (hard error, {} geodesics; {:.1} s)\n", report.geodesics.name(), report.wall_seconds);
     outln!("{}", report.table());
     for r in report.runs.iter().filter(|r| r.outcome.is_err()) {
@@ -358,6 +395,8 @@ pub(crate) struct ReproBenchArgs {
     jobs: Option<usize>,
     #[command(flatten)]
     cache: CacheArgs,
+    #[command(flatten)]
+    html: HtmlArgs,
     /// Output directory.
     #[arg(short, long)]
     output: PathBuf,
@@ -517,6 +556,7 @@ fn write_sweep_into(a: &SterileArgs, staged: &StagedDir, what: &Sweep, rows: &[S
 }
 
 fn figure7(a: &ReproBenchArgs) -> Result<()> {
+    let pages = a.html.pages()?;
     let ds = Dataset::open(&a.dataset)?;
     let pairs = select_pairs(&ds, a.pairs.as_deref(), a.limit)?;
     let pool = thread_pool(a.jobs)?;
@@ -563,7 +603,8 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
             )
         })?;
         let title = format!("{setting} data ({data}), {} pairs", pairs.len());
-        written.extend(write_report(&report, &staged.join(setting), &title).map_err(|e| staged.attribute(e))?);
+        written
+            .extend(write_report(&report, &ds, &staged.join(setting), &title, pages).map_err(|e| staged.attribute(e))?);
         table += &format!("## {title}\n\n{}\n", report.table());
         all.push((setting, setting == "scarce", report.summaries()));
     }
@@ -575,6 +616,12 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
     let md = staged.join("benchmark.md");
     funcorr::io::write_atomic(&md, format!("# {title}\n\n{table}")).map_err(|e| staged.attribute(e))?;
     written.extend([png, md]);
+    if pages.is_some() {
+        let index = staged.join("index.html");
+        let html = funcorr::viz::report::settings_index_html(&title, &settings, "benchmark.png");
+        funcorr::io::write_atomic(&index, html).map_err(|e| staged.attribute(e))?;
+        written.push(index);
+    }
     outln!("{title}\n\n{table}");
     publish(staged, &written)
 }

@@ -50,7 +50,7 @@ pub(crate) fn demo_segments(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): 
 }
 
 /// Demo step: the default `funcorr match` pipeline evaluated against the bundled ground truth;
-/// writes map.txt, X.ply, Y.ply and render.png.
+/// writes map.txt, X.ply, Y.ply, render.png and view.html (with the error heat map on X).
 pub(crate) fn demo_match(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&TriMesh, &Basis)) -> Result<()> {
     use funcorr::eval::{hard_errors, summarize, GroundTruth};
     // What `funcorr match X Y` runs: the library's defaults, data `wks`.
@@ -80,7 +80,9 @@ pub(crate) fn demo_match(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&T
     };
     let geo = funcorr::geodesic::ExactGeodesics::new(my)?;
     let gt = GroundTruth { x: vts(0, mx.n_vertices())?, y: vts(1, my.n_vertices())?, y_sym: None };
-    let plain = summarize(&hard_errors(&r.map_xy, &gt, &geo, my.total_area())?);
+    let errors = hard_errors(&r.map_xy, &gt, &geo, my.total_area())?;
+    let plain = summarize(&errors);
+    let vertex_errors = funcorr::viz::html::VertexErrors::spread(mx.vertices(), &gt, &errors, "exact geodesics")?;
     let gt = GroundTruth { y_sym: Some(vts(3, my.n_vertices())?), ..gt };
     let sym = summarize(&hard_errors(&r.map_xy, &gt, &geo, my.total_area())?);
     outln!("\nMatching X → Y with the defaults of `funcorr match` ({}): {seconds:.1} s", describe(DEFAULT_DATA, &opts));
@@ -98,6 +100,18 @@ pub(crate) fn demo_match(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&T
     let view = funcorr::viz::View::parse(DEFAULT_VIEW)?;
     write_colour_transfer(out, x, y, &r.map_yx, Some((parse_size(DEFAULT_SIZE)?, &view)))?;
     outln!("  colour transfer: X.ply, Y.ply (per-vertex colours) and render.png");
+    let name = |(n, _): (&str, &[u8])| n.trim_end_matches(".off").to_string();
+    crate::view::write_match_view(
+        out,
+        (x, &name(DEMO_X)),
+        (y, &name(DEMO_Y)),
+        &r.map_xy,
+        &r.map_yx,
+        describe(DEFAULT_DATA, &opts),
+        &[],
+        Some(vertex_errors),
+    )?;
+    outln!("  interactive viewer: view.html (colour transfer, error on X, click a vertex to see its image on Y)");
     Ok(())
 }
 
@@ -111,6 +125,7 @@ pub(crate) fn demo(target: &Path, k: usize) -> Result<()> {
     demo_into(&staged, k).map_err(|e| staged.attribute(e))?;
     staged.publish()?;
     outln!("\nwrote {}", target.display());
+    outln!("open {} in a browser to explore the map", target.join("view.html").display());
     Ok(())
 }
 

@@ -35,35 +35,10 @@ pub(crate) struct EvalArgs {
 }
 
 pub(crate) fn eval(args: &EvalArgs) -> Result<()> {
-    use funcorr::eval::GroundTruth;
-    use funcorr::io::indices::read_index_list_file;
     let x = Shape::load(&args.source)?;
     let target = Shape::load(&args.target)?;
     let method = funcorr::geodesic::GeodesicMethod::from(args.geodesics);
-    // A point-cloud target: geodesics along the edges of its local triangulation, area of its
-    // surface (funcorr::cloud); a mesh: the chosen geodesics.
-    let cloud = match &target {
-        Shape::Mesh(_) => None,
-        Shape::Points(p) if p.dim() == 3 && p.len() > 3 => {
-            let pts: Vec<[f64; 3]> = (0..p.len()).map(|i| [p.point(i)[0], p.point(i)[1], p.point(i)[2]]).collect();
-            let k = funcorr::cloud::DEFAULT_NEIGHBOURS.min(p.len() - 1);
-            let surface = funcorr::cloud::cloud_surface(&pts, k)
-                .map_err(|e| Error::invalid("--target", format!("{}: {e}", args.target.display())))?;
-            if method != funcorr::geodesic::GeodesicMethod::Dijkstra {
-                eprintln!(
-                    "note: {} is a point cloud: geodesics along the edges of its local triangulation",
-                    args.target.display()
-                );
-            }
-            Some(surface)
-        }
-        Shape::Points(_) => {
-            return Err(Error::invalid(
-                "--target",
-                format!("{}: geodesic evaluation needs a triangle mesh or 3-D points", args.target.display()),
-            ))
-        }
-    };
+    let surface = target_surface(&target, &args.target, method)?;
     let (n, m) = (x.n_vertices(), target.n_vertices());
     let map = read_index_list_file(&args.map, args.one_based, m)?;
     if map.len() != n {
@@ -73,37 +48,8 @@ pub(crate) fn eval(args: &EvalArgs) -> Result<()> {
             format!("expected {n} lines (one per vertex of X), found {}", map.len()),
         ));
     }
-    let gt = GroundTruth {
-        x: read_index_list_file(&args.gt_source, true, n)?,
-        y: read_index_list_file(&args.gt_target, true, m)?,
-        y_sym: args.gt_target_sym.as_ref().map(|p| read_index_list_file(p, true, m)).transpose()?,
-    };
-    // Template lists correspond line by line: a length mismatch names both files.
-    let others =
-        [(Some(&args.gt_target), Some(gt.y.len())), (args.gt_target_sym.as_ref(), gt.y_sym.as_ref().map(Vec::len))];
-    for (path, len) in others {
-        if let (Some(path), Some(len)) = (path, len) {
-            if len != gt.x.len() {
-                return Err(Error::parse(
-                    path,
-                    None,
-                    format!(
-                        "{len} template points, but {} has {} (the files must correspond line by line)",
-                        args.gt_source.display(),
-                        gt.x.len()
-                    ),
-                ));
-            }
-        }
-    }
-    let (geo, area, description): (Box<dyn funcorr::eval::Distances + Send + Sync + '_>, f64, &str) =
-        match (&target, &cloud) {
-            (Shape::Mesh(y), _) => (method.build(y)?, y.total_area(), method.description()),
-            (_, Some(s)) => {
-                (Box::new(s.geodesics()?), s.area(), "Dijkstra on the edges of the point cloud's local triangulation")
-            }
-            _ => unreachable!("point sets without a surface were rejected above"),
-        };
+    let gt = read_ground_truth(&args.gt_source, &args.gt_target, args.gt_target_sym.as_deref(), n, m)?;
+    let (geo, area, description) = target_distances(&target, surface.as_ref(), method)?;
     let ev = funcorr::eval::Evaluation::of_map(&map, &gt, &*geo, area, description)?;
     let s = ev.summary;
     if args.json {
@@ -118,4 +64,91 @@ pub(crate) fn eval(args: &EvalArgs) -> Result<()> {
         outln!("geodesics         {}", description);
     }
     Ok(())
+}
+
+use funcorr::io::indices::read_index_list_file;
+
+/// The surface of a point-cloud target for its geodesics (its local triangulation,
+/// `funcorr::cloud`); None for a mesh. Errors name `--target` when the target (`path`) is
+/// neither a mesh nor 3-D points.
+pub(crate) fn target_surface(
+    target: &Shape,
+    path: &Path,
+    method: funcorr::geodesic::GeodesicMethod,
+) -> Result<Option<funcorr::cloud::CloudSurface>> {
+    // A point-cloud target: geodesics along the edges of its local triangulation, area of its
+    // surface (funcorr::cloud); a mesh: the chosen geodesics.
+    match target {
+        Shape::Mesh(_) => Ok(None),
+        Shape::Points(p) if p.dim() == 3 && p.len() > 3 => {
+            let pts: Vec<[f64; 3]> = (0..p.len()).map(|i| [p.point(i)[0], p.point(i)[1], p.point(i)[2]]).collect();
+            let k = funcorr::cloud::DEFAULT_NEIGHBOURS.min(p.len() - 1);
+            let surface = funcorr::cloud::cloud_surface(&pts, k)
+                .map_err(|e| Error::invalid("--target", format!("{}: {e}", path.display())))?;
+            if method != funcorr::geodesic::GeodesicMethod::Dijkstra {
+                eprintln!(
+                    "note: {} is a point cloud: geodesics along the edges of its local triangulation",
+                    path.display()
+                );
+            }
+            Ok(Some(surface))
+        }
+        Shape::Points(_) => Err(Error::invalid(
+            "--target",
+            format!("{}: geodesic evaluation needs a triangle mesh or 3-D points", path.display()),
+        )),
+    }
+}
+
+/// Distances on the target (the chosen geodesics on a mesh, Dijkstra on the local triangulation
+/// `surface` of a point cloud), its area and a description of the distances.
+pub(crate) type TargetDistances<'a> = (Box<dyn funcorr::eval::Distances + Send + Sync + 'a>, f64, &'static str);
+
+/// See [`TargetDistances`]; `surface` is [`target_surface`] of `target`.
+pub(crate) fn target_distances<'a>(
+    target: &'a Shape,
+    surface: Option<&funcorr::cloud::CloudSurface>,
+    method: funcorr::geodesic::GeodesicMethod,
+) -> Result<TargetDistances<'a>> {
+    match (target, surface) {
+        (Shape::Mesh(y), _) => Ok((method.build(y)?, y.total_area(), method.description())),
+        (_, Some(s)) => {
+            Ok((Box::new(s.geodesics()?), s.area(), "Dijkstra on the edges of the point cloud's local triangulation"))
+        }
+        _ => Err(Error::invalid("--target", "geodesic evaluation needs a triangle mesh or 3-D points")),
+    }
+}
+
+/// Ground truth from 1-based `.vts` files: template points on X (n vertices), their
+/// counterparts on Y (m vertices) and, optionally, the mirrored ones. Template lists correspond
+/// line by line: a length mismatch names both files.
+pub(crate) fn read_ground_truth(
+    source: &Path,
+    target: &Path,
+    target_sym: Option<&Path>,
+    n: usize,
+    m: usize,
+) -> Result<funcorr::eval::GroundTruth> {
+    let gt = funcorr::eval::GroundTruth {
+        x: read_index_list_file(source, true, n)?,
+        y: read_index_list_file(target, true, m)?,
+        y_sym: target_sym.map(|p| read_index_list_file(p, true, m)).transpose()?,
+    };
+    let others = [(Some(target), Some(gt.y.len())), (target_sym, gt.y_sym.as_ref().map(Vec::len))];
+    for (path, len) in others {
+        if let (Some(path), Some(len)) = (path, len) {
+            if len != gt.x.len() {
+                return Err(Error::parse(
+                    path,
+                    None,
+                    format!(
+                        "{len} template points, but {} has {} (the files must correspond line by line)",
+                        source.display(),
+                        gt.x.len()
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(gt)
 }

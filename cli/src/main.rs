@@ -43,8 +43,9 @@ enum Command {
     /// Writes OUTDIR/F.npy, OUTDIR/G.npy and OUTDIR/matches.json.
     Regions(RegionArgs),
     /// Match X to Y: data functions on both shapes, a functional map, a point-to-point map.
-    /// Writes OUTDIR/map.txt (for every vertex of X its vertex on Y), map.npy, C.npy and
-    /// report.json.
+    /// Writes OUTDIR/map.txt (for every vertex of X its vertex on Y), map.npy, map_yx.npy (for
+    /// every vertex of Y a vertex of X), C.npy, report.json, X.ply and Y.ply (colour transfer),
+    /// render.png and view.html (the interactive viewer: open it in a browser).
     Match(MatchArgs),
     /// Evaluate a point-to-point map X → Y against ground-truth template correspondences
     /// (.vts files) with the Princeton protocol: geodesic errors on Y / √area(Y).
@@ -59,6 +60,10 @@ enum Command {
         #[command(subcommand)]
         what: bench::ReproduceWhat,
     },
+    /// Write the interactive viewer page of a map (view.html: X and Y side by side in the
+    /// browser, colour transfer, error heat map, click a vertex to see its image), from a match
+    /// directory or from two shapes and a map.
+    View(view::ViewArgs),
     /// Run the default pipeline on a pair of bundled FAUST shapes and write results to
     /// ./funcorr-demo/.
     Demo {
@@ -95,6 +100,7 @@ mod match_cmd;
 mod options;
 mod regions;
 mod spectrum;
+mod view;
 
 #[allow(unused_imports)]
 use args::*;
@@ -124,6 +130,7 @@ fn main() -> ExitCode {
         Command::Regions(args) => regions(&args),
         Command::Match(args) => match_shapes(&args),
         Command::Eval(args) => eval(&args),
+        Command::View(args) => view::view(&args),
         Command::Demo { out, k } => demo(&out, k),
         Command::Bench(args) => bench::bench(&args),
         Command::Reproduce { what } => bench::reproduce(&what),

@@ -39,6 +39,9 @@ pub(crate) struct MatchArgs {
     /// Do not write render.png.
     #[arg(long)]
     pub(crate) no_render: bool,
+    /// Do not write view.html (the interactive viewer: open it in a browser).
+    #[arg(long)]
+    pub(crate) no_html: bool,
     /// Output directory.
     #[arg(short, long)]
     pub(crate) output: PathBuf,
@@ -166,6 +169,11 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
         // Everything goes into a staging directory, published whole at the end (io::staged).
         staged.write_with(|out| {
             write_map_files(out, &r.map_xy, args.one_based)?;
+            funcorr::io::npy::write_npy_vec_u64(
+                &out.join("map_yx.npy"),
+                &r.map_yx.iter().map(|&i| i as u64).collect::<Vec<_>>(),
+            )?;
+            let mut soft = Vec::new();
             write_mat_npy(&out.join("C.npy"), &r.c)?;
             if r.c_method.nrows() != r.c.nrows() || opts.refine != funcorr::matching::Refine::None {
                 write_mat_npy(&out.join("C_method.npy"), &r.c_method)?;
@@ -189,6 +197,7 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
                     dy.colors = Some(funcorr::viz::diverging_colors(&t));
                     funcorr::io::write_mesh(&out.join(format!("soft_{i}.ply")), &dy)?;
                 }
+                soft.push((i, t));
             }
             #[derive(serde::Serialize)]
             struct ReportFile<'a> {
@@ -208,7 +217,21 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
             };
             let p = out.join("report.json");
             funcorr::io::write_atomic(&p, funcorr::io::to_json_sorted(&report)?)?;
-            write_colour_transfer(out, x, y, &r.map_yx, (!args.no_render).then_some((size, &view)))
+            write_colour_transfer(out, x, y, &r.map_yx, (!args.no_render).then_some((size, &view)))?;
+            if !args.no_html {
+                let name = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
+                crate::view::write_match_view(
+                    out,
+                    (x, &name(&args.x)),
+                    (y, &name(&args.y)),
+                    &r.map_xy,
+                    &r.map_yx,
+                    describe(&args.data, &opts),
+                    &soft,
+                    None,
+                )?;
+            }
+            Ok(())
         })
     })?;
     st.note(format!("q {} | C {}×{}", f.q(), r.c.nrows(), r.c.ncols()));

@@ -263,6 +263,10 @@ fn demo_runs_on_bundled_data() {
     assert_eq!(std::fs::read_to_string(d.join("map.txt")).unwrap().lines().count(), 4999);
     assert!(d.join("X.ply").exists() && d.join("Y.ply").exists());
     assert_png(&d.join("render.png"), 1600, 900);
+    // The viewer page, with the errors of the bundled ground truth; its path is printed.
+    let page = std::fs::read_to_string(d.join("view.html")).unwrap();
+    assert!(page.contains("funcorr-meta") && page.contains("\"errors\":{") && page.contains("THREE"));
+    assert!(s.contains(&format!("open {} in a browser", d.join("view.html").display())), "{s}");
     std::fs::remove_dir_all(&d).unwrap();
 }
 
@@ -889,6 +893,17 @@ fn bench_on_the_bundled_data_set_writes_what_it_promises() {
     let pairs: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("pairs.json")).unwrap()).unwrap();
     assert_eq!(pairs.as_array().unwrap().len(), 8);
     assert_eq!(pairs[0]["curve"].as_array().unwrap().len(), 51);
+    // index.html: every run, sortable, linking to the viewer pages (the worst 10 of each
+    // method: here all 8 runs), which load their scripts from viewer/.
+    let index = std::fs::read_to_string(out.join("index.html")).unwrap();
+    assert_eq!(index.matches("<a href=\"pairs/").count(), 8, "{index}");
+    assert!(index.contains("<svg") && index.contains("class=\"sortable\""));
+    let page = std::fs::read_to_string(out.join("pairs/tr_reg_000__tr_reg_001.fmap.html")).unwrap();
+    assert!(page.contains("<script src=\"../viewer/three.min.js\"></script>") && page.contains("funcorr-meta"));
+    assert!(page.contains("\"errors\":{"), "the page has the errors");
+    for f in ["three.min.js", "OrbitControls.js", "viewer.js", "THREE-LICENSE.txt"] {
+        assert!(out.join("viewer").join(f).is_file(), "viewer/{f}");
+    }
 
     // Landmark data and no symmetric flips: also runs; flips can only lower the errors.
     let out2 = tmp("bench-landmarks");
@@ -912,6 +927,19 @@ fn bench_on_the_bundled_data_set_writes_what_it_promises() {
     assert!(r.status.success(), "{}", text(&r.stderr));
     let rows = csv(&out2.join("pairs.csv"));
     assert_eq!((rows.len(), rows[1][4].as_str()), (2, "40"));
+    // --html 0: the index without pages; --no-html: neither.
+    let out3 = tmp("bench-html");
+    let mut a = vec!["bench", "--dataset", ds.to_str().unwrap(), "--methods", "fmap", "--limit", "1", "-k", "30"];
+    a.extend(["-q", "--html", "0", "-o", out3.to_str().unwrap()]);
+    assert!(run(&a).status.success());
+    let index = std::fs::read_to_string(out3.join("index.html")).unwrap();
+    assert!(!index.contains("<a href=\"pairs/") && index.contains("funcorr view"));
+    assert!(!out3.join("pairs").exists() && !out3.join("viewer").exists());
+    let n = a.len();
+    a[n - 4] = "--no-html";
+    a.remove(n - 3);
+    assert!(run(&a).status.success());
+    assert!(!out3.join("index.html").exists());
 }
 
 #[test]
@@ -929,6 +957,7 @@ fn bench_rejects_bad_data_sets_and_options() {
     let (xs, ys) = (xs.to_str().unwrap(), ys.to_str().unwrap());
     assert_fails(&run(&["match", xs, ys, "--data", "landmarks:12", "-o", o]), "landmarks:F");
     assert_fails(&run(&["bench", "--dataset", d, "--limit", "0", "-o", o]), "--limit");
+    assert_fails(&run(&["bench", "--dataset", d, "--html", "some", "-o", o]), "--html");
     let pairs = out.join("pairs.txt");
     std::fs::write(&pairs, "tr_reg_000\ttr_reg_001\n# comment\ntr_reg_000 nobody\n").unwrap();
     assert_fails(&run(&["bench", "--dataset", d, "--pairs", pairs.to_str().unwrap(), "-o", o]), "pairs.txt:3");
@@ -1290,6 +1319,109 @@ fn hostile_inputs_of_issue_15_get_errors_naming_the_option_or_file() {
         one.to_str().unwrap(),
     ]);
     assert_fails(&r, "not connected");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// The metadata of a viewer page (its JSON part).
+fn page_meta(page: &str) -> serde_json::Value {
+    let start = page.find("id=\"funcorr-meta\">").unwrap() + "id=\"funcorr-meta\">".len();
+    serde_json::from_str(&page[start..start + page[start..].find("</script>").unwrap()]).unwrap()
+}
+
+#[test]
+fn view_pages_from_a_match_directory_and_from_files() {
+    let d = tmp("view");
+    let out = d.join("out");
+    let (x, y) = (data("tr_reg_000.off"), data("tr_reg_001.off"));
+    let (xs, ys, o) = (x.to_str().unwrap(), y.to_str().unwrap(), out.to_str().unwrap());
+    let r = run(&[
+        "match",
+        xs,
+        ys,
+        "--data",
+        "wks:50",
+        "-k",
+        "30",
+        "--kprime",
+        "80",
+        "--zoomout-to",
+        "80",
+        "--soft",
+        "3",
+        "--no-render",
+        "-q",
+        "-o",
+        o,
+    ]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    // match writes view.html and the map Y → X beside map.npy.
+    let page = std::fs::read_to_string(out.join("view.html")).unwrap();
+    let meta = page_meta(&page);
+    assert_eq!((meta["x"]["n"].as_u64(), meta["y"]["n"].as_u64()), (Some(4999), Some(5000)));
+    assert!(!meta["map_yx"].is_null() && meta["errors"].is_null());
+    assert_eq!(meta["modes"][1]["label"], "soft map T δ_3 on Y");
+    let yx = funcorr::io::npy::read_npy_matrix(&out.join("map_yx.npy")).unwrap();
+    assert!(yx.data.len() == 5000 && yx.data.iter().all(|&i| i < 4999.0));
+    // `funcorr view DIR` rebuilds it, here with the ground truth: X coloured by its error.
+    let (gx, gy, gs) = (data("tr_reg_000.vts"), data("tr_reg_001.vts"), data("tr_reg_001.sym.vts"));
+    let gt = ["--gt-source", gx.to_str().unwrap(), "--gt-target", gy.to_str().unwrap()];
+    let r = run(&[&["view", o, "--gt-target-sym", gs.to_str().unwrap()][..], &gt[..]].concat());
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert!(text(&r.stdout).contains("view.html"));
+    let meta = page_meta(&std::fs::read_to_string(out.join("view.html")).unwrap());
+    assert_eq!((meta["errors"]["points"].as_u64(), meta["errors"]["symmetric"].as_bool()), (Some(5000), Some(true)));
+    let mean = meta["errors"]["mean"].as_f64().unwrap();
+    let eval_mean = eval_bundled_pair(&out.join("map.txt"))["summary"]["mean"].as_f64().unwrap();
+    assert!((mean - eval_mean).abs() < 1e-12, "{mean} vs eval's {eval_mean}");
+    assert!(meta["method"].as_str().unwrap().contains("axiomatic"));
+    // `funcorr view X Y --map`: any map; without map_yx Y's colours come from the nearest image.
+    let v = d.join("v.html");
+    let map = out.join("map.txt");
+    let r = run(&["view", xs, ys, "--map", map.to_str().unwrap(), "-o", v.to_str().unwrap()]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let meta = page_meta(&std::fs::read_to_string(&v).unwrap());
+    assert_eq!(meta["map_yx_inferred"], true);
+    // Bad input: clear errors naming the file or the flag, no page.
+    let short = d.join("short.txt");
+    std::fs::write(&short, "0\n1\n").unwrap();
+    let bad = d.join("bad.html");
+    let b = bad.to_str().unwrap();
+    assert_fails(&run(&["view", xs, ys, "--map", short.to_str().unwrap(), "-o", b]), "short.txt");
+    assert_fails(&run(&["view", xs, ys, "-o", b]), "--map");
+    assert_fails(&run(&["view", xs, "-o", b]), "not a match directory");
+    assert_fails(
+        &run(&["view", xs, ys, "--map", map.to_str().unwrap(), "--map-yx", map.to_str().unwrap(), "-o", b]),
+        "map.txt",
+    );
+    assert_fails(&run(&["view", o, "--error-max", "0", "-o", b]), "--error-max");
+    let f = out.join("soft_3.npy");
+    let field = format!("{}:2", f.display());
+    assert_fails(&run(&["view", o, "--field-y", &field, "-o", b]), "--field-y");
+    assert_fails(&run(&["view", o, "--field-x", f.to_str().unwrap(), "-o", b]), "soft_3.npy");
+    assert!(!bad.exists());
+    let r = run(&["view", o, "--gt-source", gx.to_str().unwrap()]);
+    assert_eq!(r.status.code(), Some(2), "clap: --gt-source needs --gt-target");
+    // --no-html: no page.
+    let r = run(&[
+        "match",
+        xs,
+        ys,
+        "--data",
+        "wks:50",
+        "-k",
+        "30",
+        "--kprime",
+        "80",
+        "--zoomout-to",
+        "80",
+        "--no-render",
+        "--no-html",
+        "-q",
+        "-o",
+        o,
+    ]);
+    assert!(r.status.success());
+    assert!(!out.join("view.html").exists());
     std::fs::remove_dir_all(&d).unwrap();
 }
 

@@ -39,7 +39,7 @@ from . import _funcorr
 from ._funcorr import PreparedShape, get_num_threads
 
 if _TYPE_CHECKING:
-    from typing import Any, Dict, List, Optional, Tuple, Union
+    from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
     ShapeLike = Any  # path | (V, F) | (n, d) array | PreparedShape
     BasisLike = Any  # PreparedShape | (eigenvalues, eigenvectors, mass)
@@ -80,6 +80,8 @@ __all__ = [
     "cumulative_curve",
     "render_pair",
     "render",
+    "view",
+    "Viewer",
     "set_num_threads",
     "get_num_threads",
 ]
@@ -291,6 +293,151 @@ class MatchResult:
     def render(self, width: int = 1600, height: int = 900, view: Tuple[float, float] = (0.0, 0.0)) -> _np.ndarray:
         """X coloured by position beside Y coloured through ``map_yx``: (h, w, 3) uint8."""
         return render_pair(self.X, self.Y, self.map_yx, width, height, view)
+
+    def show(self, gt=None, soft: Sequence[int] = (), geodesics: str = "exact", height: int = 620, **options) -> "Viewer":
+        """The interactive viewer of the map (the ``view.html`` of ``funcorr match``): X and Y
+        side by side, colour transfer, a click on a vertex marks its image. Displays inline in
+        Jupyter and VS Code notebooks; ``.save(path)`` writes the page.
+
+        ``gt``: ``(gt_x, gt_y)`` or ``(gt_x, gt_y, gt_y_sym)`` (0-based template points, e.g.
+        from :func:`read_vts`) to colour X by the geodesic error of ``map_xy``. ``soft``:
+        vertices i of X whose soft maps T δ_i (from ``C_method``) are offered as colourings of Y.
+        Other options as :func:`view` (``title``, ``error_max``, ``fields``, ...)."""
+        fields = dict(options.pop("fields", None) or {})
+        for i in soft:
+            fields[f"soft map T δ_{int(i)} on Y"] = ("y", soft_map(self.X, self.Y, self.C_method, int(i)), int(i))
+        opts = self.report.get("options", {})
+        method = options.pop("method", None) or f"method {opts.get('method', '?')}"
+        return view(self.X, self.Y, self.map_xy, self.map_yx, gt=gt, fields=fields, method=method, geodesics=geodesics, height=height, **options)
+
+    def _repr_html_(self) -> str:
+        """The viewer, inline in a notebook (see :meth:`show`)."""
+        return self.show()._repr_html_()
+
+
+class Viewer:
+    """An interactive viewer page (self-contained HTML written by funcorr's library, three.js
+    inlined, nothing fetched from the network).
+
+    In a Jupyter or VS Code notebook it displays inline (an ``<iframe srcdoc>``, no widget
+    server). ``html`` is the page; ``save(path)`` writes it (open it in any browser).
+    """
+
+    def __init__(self, html: str, height: int = 620):
+        self.html = html
+        self.height = int(height)
+
+    def save(self, path) -> None:
+        """Writes the page to ``path`` (e.g. ``"view.html"``)."""
+        with open(path, "w", encoding="utf-8") as f:
+            f.write(self.html)
+
+    def _repr_html_(self) -> str:
+        import html as _html
+
+        return (
+            f'<iframe srcdoc="{_html.escape(self.html, quote=True)}" '
+            f'style="width:100%;height:{self.height}px;border:1px solid #ddd" '
+            'sandbox="allow-scripts allow-downloads" title="funcorr viewer"></iframe>'
+        )
+
+    def __repr__(self) -> str:
+        return f"<funcorr.Viewer: {len(self.html) / 1e6:.1f} MB page; display it in a notebook or .save('view.html')>"
+
+
+def _colors(c, n: int, name: str):
+    """(n, 3) colours as uint8: uint8 as is, floats in [0, 1] (pyFM's colour maps) scaled."""
+    if c is None:
+        return None
+    a = _np.asarray(c)
+    if a.ndim != 2 or a.shape != (n, 3):
+        raise ValueError(f"{name}: expected shape ({n}, 3), got {a.shape}")
+    if a.dtype == _np.uint8:
+        return _np.ascontiguousarray(a)
+    if _np.issubdtype(a.dtype, _np.floating):
+        return _np.ascontiguousarray(_np.clip(_np.round(255 * a), 0, 255).astype(_np.uint8))
+    return _np.ascontiguousarray(_np.clip(a, 0, 255).astype(_np.uint8))
+
+
+def _name(shape, default: str) -> str:
+    from pathlib import Path
+
+    if isinstance(shape, (str, Path)):
+        return Path(shape).stem
+    return default
+
+
+def _vertex_count(shape) -> int:
+    if isinstance(shape, PreparedShape):
+        return shape.n
+    return _n_vertices(shape)
+
+
+def view(
+    X: ShapeLike,
+    Y: Optional[ShapeLike] = None,
+    map_xy=None,
+    map_yx=None,
+    *,
+    gt=None,
+    fields: Optional[Dict[str, Any]] = None,
+    colors_x=None,
+    colors_y=None,
+    title: Optional[str] = None,
+    method: Optional[str] = None,
+    geodesics: str = "exact",
+    error_max: float = 0.25,
+    start: Optional[str] = None,
+    height: int = 620,
+) -> Viewer:
+    """The interactive viewer of any map X → Y (also pyFM's: ``map_xy = p2p_12``,
+    ``map_yx = p2p_21``), or of one shape (``Y=None``): the page of ``funcorr view``.
+
+    ``X``, ``Y``: paths, ``(V, F)``, point arrays or PreparedShapes. ``map_xy`` (n,): for every
+    vertex of X a vertex of Y; ``map_yx`` (m,): the other way (colours Y as the PLY files of
+    ``funcorr match`` and lets a click on Y show its image; without it Y takes the colour of the
+    vertex of X whose image is nearest). ``gt``: ``(gt_x, gt_y[, gt_y_sym])`` 0-based template
+    points: X coloured by the geodesic error of ``map_xy`` (``geodesics``: ``"exact"``,
+    ``"heat"``, ``"dijkstra"``; colour bar up to ``error_max``). ``fields``: ``{name: (side,
+    values)}`` or ``{name: (side, values, mark)}`` with side ``"x"`` or ``"y"``, values one per
+    vertex of that shape (a descriptor channel, a soft map), ``mark`` a vertex of the other
+    shape to mark. ``colors_x``/``colors_y``: (n, 3) colours (uint8, or floats in [0, 1]) instead
+    of the colouring by position. ``start``: the colouring shown first (``"error"`` or a field's
+    name; default the colour transfer).
+
+    Returns a :class:`Viewer` (displays inline in notebooks; ``.save(path)``, ``.html``).
+    """
+    n = _vertex_count(X)
+    m = _vertex_count(Y) if Y is not None else 0
+    field_list = []
+    for name, spec in (fields or {}).items():
+        side, values, *rest = spec
+        field_list.append((str(name), str(side), _np.asarray(values, dtype=_np.float64).ravel(), int(rest[0]) if rest and rest[0] is not None else None))
+    gt_x = gt_y = gt_y_sym = None
+    if gt is not None:
+        gt_x, gt_y, *rest = gt
+        gt_y_sym = rest[0] if rest else None
+    xn, yn = _name(X, "X"), _name(Y, "Y")
+    html = _funcorr.viewer_html(
+        X,
+        Y,
+        None if map_xy is None else _np.asarray(map_xy),
+        None if map_yx is None else _np.asarray(map_yx),
+        _colors(colors_x, n, "colors_x"),
+        _colors(colors_y, m, "colors_y") if Y is not None else None,
+        None if gt_x is None else _np.asarray(gt_x),
+        None if gt_y is None else _np.asarray(gt_y),
+        None if gt_y_sym is None else _np.asarray(gt_y_sym),
+        geodesics,
+        error_max,
+        field_list,
+        title or (f"{xn} → {yn}" if Y is not None else xn),
+        method,
+        xn,
+        yn,
+        start,
+    )
+    return Viewer(html, height)
 
 
 def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str, Tuple[Any, Any]] = "wks", progress=None, **options) -> MatchResult:

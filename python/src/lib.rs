@@ -11,6 +11,7 @@ mod functions;
 mod matching;
 mod options;
 mod prepared;
+mod viewer;
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -130,5 +131,6 @@ fn _funcorr(m: &Bound<'_, PyModule>) -> PyResult<()> {
     functions::register(m)?;
     prepared::register(m)?;
     matching::register(m)?;
+    viewer::register(m)?;
     Ok(())
 }

@@ -190,6 +190,40 @@ impl GraphGeodesics {
         Ok(w.dist)
     }
 
+    /// The geodesic Voronoi partition of `sources`: for every vertex its distance to the nearest
+    /// source and that source's position in `sources` (both length n; unreachable vertices get
+    /// ∞ and `u32::MAX`). One Dijkstra run from all sources at once, O(n log n).
+    pub fn nearest_sources(&self, sources: &[usize]) -> Result<(Vec<f64>, Vec<u32>)> {
+        for &s in sources {
+            self.check("source", s)?;
+        }
+        let n = self.n();
+        let (mut dist, mut label) = (vec![f64::INFINITY; n], vec![u32::MAX; n]);
+        let mut heap = BinaryHeap::new();
+        for (i, &s) in sources.iter().enumerate() {
+            if dist[s] > 0.0 {
+                dist[s] = 0.0;
+                label[s] = i as u32;
+                heap.push(Item(0.0, s as u32));
+            }
+        }
+        while let Some(Item(d, v)) = heap.pop() {
+            let v = v as usize;
+            if d > dist[v] {
+                continue;
+            }
+            for &(u, l) in &self.adj[self.start[v]..self.start[v + 1]] {
+                let nd = d + l;
+                if nd < dist[u as usize] {
+                    dist[u as usize] = nd;
+                    label[u as usize] = label[v];
+                    heap.push(Item(nd, u));
+                }
+            }
+        }
+        Ok((dist, label))
+    }
+
     /// Distances from each of `sources` to every vertex: n × sources.len(), in parallel.
     pub fn distances(&self, sources: &[usize]) -> Result<faer::Mat<f64>> {
         for &s in sources {
@@ -253,6 +287,18 @@ impl GraphGeodesics {
 mod tests {
     use super::*;
     use crate::primitives::{cycle_edges, icosphere};
+
+    #[test]
+    fn nearest_sources_partition_the_graph() {
+        let g = GraphGeodesics::from_edges(10, &cycle_edges(10)).unwrap();
+        let (d, l) = g.nearest_sources(&[0, 5]).unwrap();
+        let all = g.distances(&[0, 5]).unwrap();
+        for v in 0..10 {
+            assert_eq!(d[v], all[(v, 0)].min(all[(v, 1)]));
+            assert_eq!(all[(v, l[v] as usize)], d[v]);
+        }
+        assert!(g.nearest_sources(&[10]).is_err());
+    }
 
     #[test]
     fn cycle_graph_distances() {

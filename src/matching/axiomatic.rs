@@ -31,7 +31,10 @@ use crate::fmap::axiomatic::{axiomatic_sizes, AxiomaticOptions, ShapeData};
 use crate::fmap::energy::{EnergyWeights, Orientation};
 use crate::prepared::PreparedShape;
 use crate::refine::{self, ZoomOutOptions};
+use crate::geodesic::GraphGeodesics;
 use crate::spatial::{farthest_point_samples, Samples};
+
+use super::search::{self, SampleDistances, SearchOptions};
 
 /// A ZoomOut schedule on vertex samples.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -81,6 +84,10 @@ pub struct AxiomaticPipeline {
     /// instead of exactly ([`NearSearch`]).
     #[serde(default)]
     pub near: NearSearch,
+    /// The basin search: candidates scored by geodesic distortion on samples, the chosen one's
+    /// samples corrected ([`super::search`]).
+    #[serde(default)]
+    pub search: SearchOptions,
 }
 
 /// The searches of the pipeline on large pairs. Above `above_pairs` vertex pairs n · m (with
@@ -125,6 +132,7 @@ impl Default for AxiomaticPipeline {
             continue_probe: true,
             polish: 1,
             near: NearSearch::default(),
+            search: SearchOptions::default(),
         }
     }
 }
@@ -142,10 +150,36 @@ impl AxiomaticPipeline {
 pub struct Candidate {
     /// Size k of its functional map.
     pub k: usize,
-    /// Metric distortion of its probe map.
+    /// Distortion of its probe map: with the basin search the geodesic distortion on the
+    /// search samples ([`super::search::distortion`]), else the metric distortion of the edges
+    /// ([`crate::refine::metric_distortion`]).
     pub distortion: f64,
-    /// Orientation agreement of its probe map ([`crate::refine::orientation_agreement`]).
+    /// Orientation agreement of its probe map ([`crate::refine::orientation_agreement`], around
+    /// the search samples with the basin search).
     pub orientation: f64,
+    /// Geodesic distortion after the correction of its samples (NaN without it).
+    pub corrected_distortion: f64,
+    /// Orientation of the corrected sample map ([`super::search::orientation`]; NaN without it).
+    pub corrected_orientation: f64,
+    /// Samples the correction moved.
+    pub moved: usize,
+    /// For the candidate made of a corrected sample map: the candidate it was corrected from.
+    pub corrected_from: Option<usize>,
+}
+
+impl Candidate {
+    /// A candidate of size k with no score yet.
+    fn unscored(k: usize) -> Candidate {
+        Candidate {
+            k,
+            distortion: f64::NAN,
+            orientation: f64::NAN,
+            corrected_distortion: f64::NAN,
+            corrected_orientation: f64::NAN,
+            moved: 0,
+            corrected_from: None,
+        }
+    }
 }
 
 /// What [`axiomatic_pipeline`] returns.
@@ -166,6 +200,9 @@ pub struct AxiomaticResult {
     /// The samples of X and Y of the final refinement when the final maps were searched near
     /// them ([`NearSearch`]), for the map Y → X.
     pub near_samples: Option<(Samples, Samples)>,
+    /// What the basin search's correction did (the correction of the candidate it started
+    /// from; None without the search).
+    pub correction: Option<super::search::Correction>,
 }
 
 fn samples_of(s: &PreparedShape, count: usize) -> Result<Samples> {
@@ -281,61 +318,234 @@ pub fn axiomatic_pipeline(
         _ => None,
     };
     let scale = (y.basis.mass.iter().sum::<f64>() / x.basis.mass.iter().sum::<f64>()).sqrt();
-    // The candidates are probed independently, in parallel.
-    let (tx, py, ny) = (x.triangles(), y.positions(), y.normals());
-    // Large pairs score a probe around its samples: the map is needed on their one-rings only.
-    let probe_patch = match (&probe_refs, tx) {
-        (Some(_), Some(tx)) => Some(refine::incident_vertices(tx, &probe_samples.vertices)),
+    let (tx, ty) = (x.triangles(), y.triangles());
+    // The basin search (module `search`): samples of X and anchors of Y with their geodesic
+    // distances.
+    let search = match (tx, ty) {
+        (Some(tx), Some(ty)) if p.search.samples > 0 => {
+            let (sx, sy) = rayon::join(
+                || SampleDistances::new(tx, &x.basis.mass, &GraphGeodesics::mesh_edges(tx)?, p.search.samples),
+                || SampleDistances::new(ty, &y.basis.mass, &GraphGeodesics::mesh_edges(ty)?, p.search.anchors),
+            );
+            let sx = sx?;
+            let neighbours = search::sample_neighbours(&sx, ORIENTATION_NEIGHBOURS);
+            Some(Search { x: sx, y: sy?, neighbours })
+        }
         _ => None,
     };
-    let probed: Vec<(Candidate, Option<Mat<f64>>)> = fits
+    if search.is_some() {
+        stages.push(("search samples".to_string(), t.elapsed().as_secs_f64()));
+    }
+    let t = std::time::Instant::now();
+    // Where a probe's map is read: the search samples' one-rings (score and orientation), or
+    // without the search on large pairs the probe samples' one-rings, else every vertex.
+    let patch: Option<Vec<usize>> = match (&search, tx) {
+        (Some(s), Some(tx)) => Some(refine::incident_vertices(tx, &s.x.samples.vertices)),
+        (None, Some(tx)) if probe_refs.is_some() => Some(refine::incident_vertices(tx, &probe_samples.vertices)),
+        _ => None,
+    };
+    let centres: &[usize] = match &search {
+        Some(s) => &s.x.samples.vertices,
+        None => &probe_samples.vertices,
+    };
+    let ctx = ProbeContext {
+        x,
+        y,
+        p,
+        probe_samples: &probe_samples,
+        near: &near_positions,
+        probe_refs: &probe_refs,
+        patch: &patch,
+        centres,
+        search: &search,
+        scale,
+    };
+    // The candidates are probed independently, in parallel.
+    let mut probed: Vec<Probe> = fits
         .par_iter()
         .zip(p.candidates.par_iter())
         .map(|(c, &k)| {
-            let probe = if fits.len() == 1 {
-                None
-            } else {
-                let o = ZoomOutOptions { k_final: p.probe.k_final.max(k), step: p.probe.step };
-                match (&near_positions, &probe_refs) {
-                    (Some(near), Some(sy)) => {
-                        let ys = &sy.vertices;
-                        let c = refine::zoomout_fmap_near(phi, psi, &probe_samples, ys, c.as_ref(), &o, near)?;
-                        let xs = &probe_samples.vertices;
-                        let map = match &probe_patch {
-                            // The images of the samples' one-rings; other entries stay 0 (unread).
-                            Some(patch) => {
-                                let images =
-                                    refine::map_of_pullback_near_at(phi, psi, c.as_ref(), xs, ys, near, patch)?;
-                                let mut map = vec![0usize; phi.nrows()];
-                                patch.iter().zip(images).for_each(|(&v, j)| map[v] = j);
-                                map
-                            }
-                            None => refine::map_of_pullback_near(phi, psi, c.as_ref(), xs, ys, near)?,
-                        };
-                        Some((c, map))
-                    }
-                    _ => Some(refine::zoomout(phi, psi, &probe_samples, c.as_ref(), &o)?),
-                }
-            };
-            let (distortion, orientation) = match (&probe, tx, py, ny, &probe_patch) {
-                (Some((_, m)), Some(tx), Some(py), Some(ny), Some(_)) => {
-                    let centres = &probe_samples.vertices;
-                    (
-                        refine::metric_distortion_around(tx, py, scale, m, centres)?,
-                        refine::orientation_agreement_around(tx, py, ny, m, centres)?,
-                    )
-                }
-                (Some((_, m)), Some(tx), Some(py), Some(ny), None) => {
-                    (refine::metric_distortion(tx, py, scale, m)?, refine::orientation_agreement(tx, py, ny, m)?)
-                }
-                _ => (f64::NAN, f64::NAN),
-            };
-            Ok((Candidate { k, distortion, orientation }, probe.map(|(c, _)| c)))
+            if fits.len() == 1 && search.is_none() {
+                return Ok(Probe { candidate: Candidate::unscored(k), c: None, images: None, corrected: None });
+            }
+            ctx.probe(c, k, true)
         })
         .collect::<Result<_>>()?;
-    let (candidates, mut probe_maps): (Vec<Candidate>, Vec<Option<Mat<f64>>>) = probed.into_iter().unzip();
-    // The smallest distortion (the first candidate when none could be measured).
-    let chosen = (0..candidates.len())
+    stages.push(("candidate probes".to_string(), t.elapsed().as_secs_f64()));
+    // The correction (module `search`): the candidates' corrected sample maps of the asked
+    // orientation, the one of lowest distortion becomes one more candidate (its moved samples
+    // take their corrected images, the others keep theirs), probed as the others.
+    let t = std::time::Instant::now();
+    let mut correction = None;
+    let mut starts: Vec<Mat<f64>> = fits;
+    if let Some(s) = &search {
+        let scored: Vec<Candidate> = probed
+            .iter()
+            .map(|q| Candidate {
+                distortion: q.candidate.corrected_distortion,
+                orientation: q.candidate.corrected_orientation,
+                ..q.candidate.clone()
+            })
+            .collect();
+        let from = choose(&scored, p.fit.orientation);
+        // The samples the correction moved away from the best candidate's images by more than
+        // the search's resolution take their corrected images, the others keep the best
+        // candidate's: when none moved, the best candidate is in the right basin as it is.
+        let best = choose(&probed.iter().map(|q| q.candidate.clone()).collect::<Vec<_>>(), p.fit.orientation);
+        if let (Some((fixed, mut report)), Some(images)) = (probed[from].corrected.take(), probed[best].images.as_ref()) {
+            let moved: Vec<bool> = images.iter().zip(&fixed).map(|(&o, &f)| search::has_moved(&s.x, &s.y, o, f)).collect();
+            report.moved = moved.iter().filter(|&&m| m).count();
+            if report.moved > 0 {
+                let hybrid: Vec<usize> =
+                    fixed.iter().zip(images).zip(&moved).map(|((&f, &o), &m)| if m { f } else { o }).collect();
+                let k0 = p.candidates.iter().copied().min().unwrap_or(1).min(s.x.len() / 4).max(1);
+                let c0 = refine::pullback(phi, psi, &s.x.samples, &hybrid, k0, k0)?;
+                let mut q = ctx.probe(&c0, k0, false)?;
+                q.candidate.corrected_from = Some(from);
+                probed.push(q);
+                starts.push(c0);
+            }
+            correction = Some(report);
+        }
+    }
+    let candidates: Vec<Candidate> = probed.iter().map(|p| p.candidate.clone()).collect();
+    let chosen = choose(&candidates, p.fit.orientation);
+    stages.push(("correction".to_string(), t.elapsed().as_secs_f64()));
+    let c_fit = starts.swap_remove(chosen);
+    // The final refinement starts from the fit, or (continue_probe) from the probe's result.
+    let c_start = match (p.continue_probe, probed[chosen].c.take()) {
+        (true, Some(c)) => c,
+        _ => c_fit.clone(),
+    };
+    let (c_yx, map_xy, near_samples) = refine_from(x, y, c_start, &c_fit, p, &near_positions, &mut stages)?;
+    Ok(AxiomaticResult { map_xy, c_yx, c_fit, candidates, chosen, stages, near_samples, correction })
+}
+
+/// What every probe of [`axiomatic_pipeline`] reads.
+struct ProbeContext<'a> {
+    x: &'a PreparedShape,
+    y: &'a PreparedShape,
+    p: &'a AxiomaticPipeline,
+    probe_samples: &'a Samples,
+    near: &'a Option<refine::Near<'a>>,
+    probe_refs: &'a Option<Samples>,
+    patch: &'a Option<Vec<usize>>,
+    centres: &'a [usize],
+    search: &'a Option<Search>,
+    scale: f64,
+}
+
+impl ProbeContext<'_> {
+    /// ZoomOut from the start `c` (C_yx, k × k) to the probe size on the probe samples, the map
+    /// where it is scored, its orientation and distortion (geodesic on the search samples, or of
+    /// the edges), and with `correct` the correction of its search samples.
+    fn probe(&self, c: &Mat<f64>, k: usize, correct: bool) -> Result<Probe> {
+        let (x, y, p) = (self.x, self.y, self.p);
+        let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
+        let (tx, py, ny) = (x.triangles(), y.positions(), y.normals());
+        let o = ZoomOutOptions { k_final: p.probe.k_final.max(k), step: p.probe.step };
+        let (c, map) = match (self.near, self.probe_refs) {
+            (Some(near), Some(sy)) => {
+                let (xs, ys) = (&self.probe_samples.vertices, &sy.vertices);
+                let c = refine::zoomout_fmap_near(phi, psi, self.probe_samples, ys, c.as_ref(), &o, near)?;
+                let map = match self.patch {
+                    // The images of the patch; other entries stay 0 (unread).
+                    Some(patch) => {
+                        let images = refine::map_of_pullback_near_at(phi, psi, c.as_ref(), xs, ys, near, patch)?;
+                        spread(phi.nrows(), patch, &images)
+                    }
+                    None => refine::map_of_pullback_near(phi, psi, c.as_ref(), xs, ys, near)?,
+                };
+                (c, map)
+            }
+            _ => {
+                let c = refine::zoomout_fmap(phi, psi, self.probe_samples, c.as_ref(), &o)?;
+                let map = match self.patch {
+                    Some(patch) => spread(phi.nrows(), patch, &refine::map_of_pullback(phi, psi, c.as_ref(), Some(patch))?),
+                    None => refine::map_of_pullback(phi, psi, c.as_ref(), None)?,
+                };
+                (c, map)
+            }
+        };
+        let mut candidate = Candidate::unscored(k);
+        candidate.orientation = match (tx, py, ny) {
+            (Some(tx), Some(py), Some(ny)) if self.patch.is_some() => {
+                refine::orientation_agreement_around(tx, py, ny, &map, self.centres)?
+            }
+            (Some(tx), Some(py), Some(ny)) => refine::orientation_agreement(tx, py, ny, &map)?,
+            _ => f64::NAN,
+        };
+        let images = match (self.search, tx, py) {
+            (Some(s), _, _) => {
+                let images: Vec<usize> = s.x.samples.vertices.iter().map(|&v| map[v]).collect();
+                candidate.distortion = search::distortion(&s.x, &s.y, &images);
+                Some(images)
+            }
+            (None, Some(tx), Some(py)) => {
+                candidate.distortion = if self.patch.is_some() {
+                    refine::metric_distortion_around(tx, py, self.scale, &map, self.centres)?
+                } else {
+                    refine::metric_distortion(tx, py, self.scale, &map)?
+                };
+                None
+            }
+            _ => None,
+        };
+        // The correction of this candidate's samples, and the orientation of its result.
+        let corrected = match (self.search, &images, x.positions(), x.normals(), py, ny) {
+            (Some(s), Some(images), Some(px), Some(nx), Some(py), Some(ny)) if correct && p.search.rounds > 0 => {
+                let (fixed, report) = search::correct(&s.x, &s.y, images, p.search.rounds)?;
+                let xs = &s.x.samples.vertices;
+                candidate.corrected_distortion = report.trace.iter().copied().fold(f64::INFINITY, f64::min);
+                candidate.corrected_orientation = search::orientation(px, nx, py, ny, xs, &fixed, &s.neighbours);
+                candidate.moved = report.moved;
+                Some((fixed, report))
+            }
+            _ => None,
+        };
+        Ok(Probe { candidate, c: Some(c), images, corrected })
+    }
+}
+
+/// The search's data: X's samples and Y's anchors with their distances, the samples'
+/// neighbours for the orientation of sample maps.
+struct Search {
+    x: SampleDistances,
+    y: SampleDistances,
+    neighbours: Vec<Vec<usize>>,
+}
+
+/// Neighbours per sample in the orientation of sample maps ([`search::orientation`]).
+const ORIENTATION_NEIGHBOURS: usize = 8;
+
+/// A probed candidate: its scores, its probe's functional map and, with the search, the images
+/// of the search samples and their correction.
+struct Probe {
+    candidate: Candidate,
+    c: Option<Mat<f64>>,
+    images: Option<Vec<usize>>,
+    corrected: Option<(Vec<usize>, search::Correction)>,
+}
+
+/// A map of length n from the images of the vertices `rows` (0 elsewhere, unread).
+fn spread(n: usize, rows: &[usize], images: &[usize]) -> Vec<usize> {
+    let mut map = vec![0usize; n];
+    rows.iter().zip(images).for_each(|(&v, &j)| map[v] = j);
+    map
+}
+
+/// The candidate with the smallest distortion among those whose orientation agrees with the
+/// asked one (orientation ≥ 0 for preserving maps, ≤ 0 for reversing ones; all when none does
+/// or orientation is ignored); the first candidate when no distortion could be measured.
+fn choose(candidates: &[Candidate], orientation: Orientation) -> usize {
+    let agrees = |c: &Candidate| match orientation {
+        Orientation::Preserve => !(c.orientation < 0.0),
+        Orientation::Reverse => !(c.orientation > 0.0),
+        Orientation::Ignore => true,
+    };
+    let any = candidates.iter().any(agrees);
+    (0..candidates.len())
+        .filter(|&a| !any || agrees(&candidates[a]))
         .min_by(|&a, &b| {
             let (da, db) = (candidates[a].distortion, candidates[b].distortion);
             match (da.is_nan(), db.is_nan()) {
@@ -345,72 +555,74 @@ pub fn axiomatic_pipeline(
                 (true, true) => a.cmp(&b),
             }
         })
-        .expect("at least one candidate");
-    stages.push(("candidate selection".to_string(), t.elapsed().as_secs_f64()));
+        .unwrap_or(0)
+}
+
+/// The final refinement from `c_start` (C_yx): ZoomOut (or its bijective variant) to
+/// `p.refine.k_final`, then the polish. Returns (C_yx, map_xy, the samples of the restricted
+/// final searches) and appends its stage times.
+fn refine_from(
+    x: &PreparedShape,
+    y: &PreparedShape,
+    c_start: Mat<f64>,
+    c_fit: &Mat<f64>,
+    p: &AxiomaticPipeline,
+    near_positions: &Option<refine::Near>,
+    stages: &mut Vec<(String, f64)>,
+) -> Result<(Mat<f64>, Vec<usize>, Option<(Samples, Samples)>)> {
+    let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
     let t = std::time::Instant::now();
-    let c_fit = fits[chosen].clone();
-    // The final refinement starts from the fit, or (continue_probe) from the probe's result.
-    let c_start = match (p.continue_probe, probe_maps[chosen].take()) {
-        (true, Some(c)) => c,
-        _ => c_fit.clone(),
-    };
-    let mut near_samples = None;
-    let (c_yx, map_xy) = if p.refine.k_final == 0 {
-        let unrefined = (c_fit.clone(), refine::map_of_pullback(phi, psi, c_fit.as_ref(), None)?);
+    if p.refine.k_final == 0 {
+        let unrefined = (c_fit.clone(), refine::map_of_pullback(phi, psi, c_fit.as_ref(), None)?, None);
         stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
-        unrefined
-    } else {
-        // Samples computed once for ZoomOut (or its bijective variant) and the polish.
-        let sx = samples_of(x, p.refine.samples)?;
-        let sy = if p.bijective > 0.0 || p.polish > 0 { Some(samples_of(y, p.refine.samples)?) } else { None };
-        let (c, map) = match &sy {
-            Some(sy) if p.bijective > 0.0 => {
-                let o = refine::BijectiveOptions {
-                    k_final: p.refine.k_final.max(c_fit.nrows()),
-                    step: p.refine.step,
-                    bijectivity: p.bijective,
+        return Ok(unrefined);
+    }
+    // Samples computed once for ZoomOut (or its bijective variant) and the polish.
+    let sx = samples_of(x, p.refine.samples)?;
+    let sy = if p.bijective > 0.0 || p.polish > 0 { Some(samples_of(y, p.refine.samples)?) } else { None };
+    let (c, map) = match &sy {
+        Some(sy) if p.bijective > 0.0 => {
+            let o = refine::BijectiveOptions {
+                k_final: p.refine.k_final.max(c_start.nrows()),
+                step: p.refine.step,
+                bijectivity: p.bijective,
+            };
+            let c_xy0 = c_start.transpose().to_owned();
+            let (c, m, _) = refine::bijective_zoomout(phi, psi, &sx, sy, c_start.as_ref(), c_xy0.as_ref(), &o)?;
+            (c, Some(m))
+        }
+        _ => {
+            let o = ZoomOutOptions { k_final: p.refine.k_final.max(c_start.nrows()), step: p.refine.step };
+            if p.polish > 0 {
+                // The polish reads the point map off itself.
+                let c = match (near_positions, &sy) {
+                    (Some(near), Some(sy)) => {
+                        refine::zoomout_fmap_near(phi, psi, &sx, &sy.vertices, c_start.as_ref(), &o, near)?
+                    }
+                    _ => refine::zoomout_fmap(phi, psi, &sx, c_start.as_ref(), &o)?,
                 };
-                let c_xy0 = c_fit.transpose().to_owned();
-                let (c, m, _) = refine::bijective_zoomout(phi, psi, &sx, sy, c_fit.as_ref(), c_xy0.as_ref(), &o)?;
+                (c, None)
+            } else {
+                let (c, m) = refine::zoomout(phi, psi, &sx, c_start.as_ref(), &o)?;
                 (c, Some(m))
-            }
-            _ => {
-                let o = ZoomOutOptions { k_final: p.refine.k_final.max(c_start.nrows()), step: p.refine.step };
-                if p.polish > 0 {
-                    // The polish reads the point map off itself.
-                    let c = match (&near_positions, &sy) {
-                        (Some(near), Some(sy)) => {
-                            refine::zoomout_fmap_near(phi, psi, &sx, &sy.vertices, c_start.as_ref(), &o, near)?
-                        }
-                        _ => refine::zoomout_fmap(phi, psi, &sx, c_start.as_ref(), &o)?,
-                    };
-                    (c, None)
-                } else {
-                    let (c, m) = refine::zoomout(phi, psi, &sx, c_start.as_ref(), &o)?;
-                    (c, Some(m))
-                }
-            }
-        };
-        stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
-        match map {
-            Some(m) if p.polish == 0 => (c, m),
-            _ => {
-                let t = std::time::Instant::now();
-                let sy = match sy {
-                    Some(sy) => sy,
-                    None => samples_of(y, p.refine.samples)?,
-                };
-                let near = near_positions.as_ref().filter(|_| p.refine.samples > 0);
-                let polished = refine::bijective_polish(phi, psi, &sx, &sy, c.as_ref(), p.polish, near)?;
-                stages.push(("polish".to_string(), t.elapsed().as_secs_f64()));
-                if near.is_some() {
-                    near_samples = Some((sx, sy));
-                }
-                polished
             }
         }
     };
-    Ok(AxiomaticResult { map_xy, c_yx, c_fit, candidates, chosen, stages, near_samples })
+    stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
+    match map {
+        Some(m) if p.polish == 0 => Ok((c, m, None)),
+        _ => {
+            let t = std::time::Instant::now();
+            let sy = match sy {
+                Some(sy) => sy,
+                None => samples_of(y, p.refine.samples)?,
+            };
+            let near = near_positions.as_ref().filter(|_| p.refine.samples > 0);
+            let (c, map) = refine::bijective_polish(phi, psi, &sx, &sy, c.as_ref(), p.polish, near)?;
+            stages.push(("polish".to_string(), t.elapsed().as_secs_f64()));
+            Ok((c, map, near.map(|_| (sx, sy))))
+        }
+    }
 }
 
 #[cfg(test)]

@@ -3,6 +3,7 @@
 //! programs are thin layers over [`run`].
 
 pub mod axiomatic;
+pub mod search;
 
 use std::time::Instant;
 
@@ -273,6 +274,8 @@ pub struct MatchReport<'a> {
     pub solver: Option<&'a SolverReport>,
     /// The axiomatic method's candidates.
     pub candidates: Option<CandidateChoice<'a>>,
+    /// The axiomatic method's basin search: what its correction did.
+    pub correction: Option<&'a search::Correction>,
     /// The stages in order.
     pub stages: Vec<StageTime<'a>>,
 }
@@ -299,6 +302,8 @@ pub struct MatchResult {
     pub stages: Vec<(String, f64)>,
     /// The axiomatic method's candidates and the index of the chosen one.
     pub candidates: Option<(Vec<axiomatic::Candidate>, usize)>,
+    /// The axiomatic method's basin search: what its correction did.
+    pub correction: Option<search::Correction>,
 }
 
 impl MatchResult {
@@ -321,6 +326,7 @@ impl MatchResult {
             final_k: self.c.nrows(),
             solver: self.solver.as_ref(),
             candidates: self.candidates.as_ref().map(|(c, i)| CandidateChoice { candidates: c, chosen: *i }),
+            correction: self.correction.as_ref(),
             stages: self.stages.iter().map(|(s, t)| StageTime { stage: s, seconds: *t }).collect(),
         }
     }
@@ -482,7 +488,7 @@ fn run_with_gradients(
         (Some((_, map_yx)), Refine::None) => map_yx.clone(),
         _ => timed(&mut stages, "map Y → X", || pointwise::map_yx_from_fmap(phi, psi, c.as_ref()))?,
     };
-    Ok(MatchResult { map_xy, map_yx, c, c_method, coefficients, factors, solver, stages, candidates: None })
+    Ok(MatchResult { map_xy, map_yx, c, c_method, coefficients, factors, solver, stages, candidates: None, correction: None })
 }
 
 /// [`run`] on prepared shapes: the axiomatic method, which needs their surfaces, and every other
@@ -531,6 +537,7 @@ pub fn run_prepared(
         solver: None,
         stages,
         candidates: Some((r.candidates, r.chosen)),
+        correction: r.correction,
     };
     Ok(in_input_units(r, x, y))
 }

@@ -3,10 +3,14 @@
 //! functions (e.g. a transferred delta, Figures 5–6) through a colour map; [`mod@render`] draws
 //! coloured meshes and point clouds to an image and writes it as PNG, without a GPU.
 //! [`plot`] draws the paper's figures (line plots); it needs the default feature `plot`.
+//! [`html`] writes the interactive viewer page of a map (three.js, in any browser or notebook)
+//! and [`report`] the `index.html` of a data set run.
 
+pub mod html;
 #[cfg(feature = "plot")]
 pub mod plot;
 pub mod render;
+pub mod report;
 
 pub use render::{render, render_pair, write_png, ColoredShape, Image, View};
 
@@ -52,6 +56,36 @@ pub fn diverging_colors(values: &[f64]) -> Vec<[u8; 3]> {
         .collect()
 }
 
+/// Stops of the error heat map ([`heat_color`]): (fraction of the top of the scale, sRGB colour),
+/// light yellow at zero through orange and red to dark red at the top (ColorBrewer's YlOrRd
+/// endpoints). Half of the colour range lies in the lowest 20 % of the scale, where most errors
+/// of a good map are.
+pub const HEAT_STOPS: [(f64, [u8; 3]); 5] =
+    [(0.0, [255, 255, 204]), (0.1, [254, 217, 118]), (0.2, [253, 141, 60]), (0.4, [227, 26, 28]), (1.0, [128, 0, 38])];
+
+/// Colour of a value not known (NaN) in [`heat_color`]: light grey.
+pub const NO_VALUE: [u8; 3] = [190, 190, 190];
+
+/// The error heat map: `value` in [0, `max`] through [`HEAT_STOPS`] (linear between stops),
+/// values above `max` the top colour, below 0 the bottom one, NaN (no value) [`NO_VALUE`].
+/// `max` must be positive (else every value gets the top colour).
+pub fn heat_color(value: f64, max: f64) -> [u8; 3] {
+    if value.is_nan() {
+        return NO_VALUE;
+    }
+    let t = if max > 0.0 { (value / max).clamp(0.0, 1.0) } else { 1.0 };
+    let k = HEAT_STOPS.iter().position(|&(s, _)| s >= t).unwrap_or(HEAT_STOPS.len() - 1).max(1);
+    let ((s0, c0), (s1, c1)) = (HEAT_STOPS[k - 1], HEAT_STOPS[k]);
+    let u = ((t - s0) / (s1 - s0)).clamp(0.0, 1.0);
+    std::array::from_fn(|d| (f64::from(c0[d]) + u * (f64::from(c1[d]) - f64::from(c0[d]))).round() as u8)
+}
+
+/// [`heat_color`] of every value (n values → n colours), e.g. per-vertex geodesic errors with
+/// `max` the top of the colour bar.
+pub fn heat_colors(values: &[f64], max: f64) -> Vec<[u8; 3]> {
+    values.iter().map(|&v| heat_color(v, max)).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -70,5 +104,22 @@ mod tests {
         assert_eq!(d[1], [255, 255, 255]);
         assert_eq!(d[2], [255, 128, 128]);
         assert_eq!(d[3], [255, 255, 255]);
+    }
+
+    #[test]
+    fn heat_map() {
+        assert_eq!(heat_color(0.0, 0.25), HEAT_STOPS[0].1);
+        assert_eq!(heat_color(-1.0, 0.25), HEAT_STOPS[0].1);
+        assert_eq!(heat_color(0.25, 0.25), [128, 0, 38]);
+        assert_eq!(heat_color(9.0, 0.25), [128, 0, 38]);
+        assert_eq!(heat_color(0.1, 0.25), [227, 26, 28]);
+        assert_eq!(heat_color(f64::NAN, 0.25), NO_VALUE);
+        // Halfway between the stops at 0.1 and 0.2 of the scale.
+        assert_eq!(heat_color(0.0375, 0.25), [254, 179, 89]);
+        // Darker (smaller channel sum) as the value grows.
+        let sums: Vec<u32> =
+            (0..=20).map(|i| heat_color(i as f64 * 0.0125, 0.25).iter().map(|&c| c as u32).sum()).collect();
+        assert!(sums.windows(2).all(|w| w[1] < w[0]), "{sums:?}");
+        assert_eq!(heat_colors(&[0.0, f64::NAN], 1.0), vec![HEAT_STOPS[0].1, NO_VALUE]);
     }
 }

@@ -11,7 +11,8 @@ The modules mirror pyFM's (pyfmaps 1.3): ``mesh`` (``TriMesh``), ``functional``
 (``FunctionalMapping``), ``spectral`` (``p2p_to_FM``, ``FM_to_p2p``, ``mesh_*`` versions,
 ``knn_query``, shape differences), ``refine`` (ICP and ZoomOut on arrays and meshes, from a map
 or a point map), ``signatures`` (HKS, WKS, their landmark versions, ``auto_*``, ``mesh_*``) and
-``eval`` (``accuracy``, ``continuity``, ``coverage``). Both pyFM APIs run: 1.3's
+``eval`` (``accuracy``, ``continuity``, ``coverage``), and ``viz`` (``plot_mesh``,
+``double_plot``, ``vertices_to_rgb``, ``normalize`` on funcorr's viewer). Both pyFM APIs run: 1.3's
 (``TriMesh.load``, ``geodesic_from(i, method=)``, ``fit(K=(k1, k2))`` setting ``FM_12``,
 refinements returned, ``get_p2p(FM)``) and the earlier one (``TriMesh(path)``,
 ``geod_from``, ``get_geodesic(save=)``, ``preprocess(n_ev=(k1, k2))``, ``fit(descr_mu=...)``,
@@ -57,14 +58,18 @@ What differs from pyFM, each said once by a :class:`FuncorrCompatWarning` when m
   images are not shipped.
 * ``knn_query`` gives the nearest neighbour only (k = 1); ``n_jobs`` is unused everywhere
   (funcorr's thread count is ``funcorr.set_num_threads``).
+* ``viz`` (pyFM's PyVista plots; the meshplot ``double_plot`` of its notebooks): funcorr's viewer
+  (:class:`funcorr.Viewer`) instead of a PyVista plotter, scalars in funcorr's blue–white–red
+  map; ``cmap``, ``clim``, extra ``points`` and vector fields are not drawn (a warning).
 * Not provided: ``TriMesh.orientation_op`` (funcorr builds its orientation operators inside the
-  fit), the ``FMN`` (map networks), ``optimize`` and ``viz`` modules.
+  fit), the ``FMN`` (map networks) and ``optimize`` modules.
 """
 
-from . import eval, functional, mesh, refine, signatures, spectral  # noqa: A004 (pyFM's name)
+from . import eval, functional, mesh, refine, signatures, spectral, viz  # noqa: A004 (pyFM's name)
 from ._common import FuncorrCompatWarning
 from .functional import FunctionalMapping
 from .mesh import TriMesh
+from .viz import double_plot, plot_mesh
 
 __all__ = [
     "TriMesh",
@@ -76,4 +81,7 @@ __all__ = [
     "refine",
     "signatures",
     "eval",
+    "viz",
+    "plot_mesh",
+    "double_plot",
 ]

@@ -1,0 +1,343 @@
+//! The basin search of the default pipeline: which candidate map lies in the right basin, and a
+//! correction of the chosen map's samples where a limb, a half of the body or a twisted trunk
+//! went to the wrong place.
+//!
+//! **The score** of a point map π: X → Y is its geodesic distortion on `s` farthest-point
+//! samples s_1 … s_s of X (shapes at unit area, [`crate::prepared`]):
+//!
+//! E(π) = Σ_{i<j} |d_X(s_i, s_j) − d_Y(π(s_i), π(s_j))| / Σ_{i<j} d_X(s_i, s_j),
+//!
+//! the Gromov-type energy of isometric matching restricted to the samples, with d the
+//! shortest-path distances along the edges of each surface ([`GraphGeodesics`]). On Y the
+//! distances are those between `a` farthest-point anchors, each vertex read as its nearest anchor
+//! (its geodesic Voronoi cell): d_Y(u, v) ≈ d_Y(ā(u), ā(v)), off by at most twice the anchors'
+//! covering radius, so that scoring a map or moving a sample costs table look-ups, not
+//! shortest-path runs. Unlike the metric distortion of edges
+//! ([`crate::refine::metric_distortion`]), which is dominated by the vertex-level jitter of any
+//! point map, E compares distances across the whole shape: a map with two legs swapped, a
+//! mirrored arm or a trunk turned by half a turn changes the distances between the parts by a
+//! fair share of their length (EXPERIMENTS.md, "The basin search").
+//!
+//! **The correction** is coordinate descent on the same energy: every sample's image is moved to
+//! the anchor of Y whose distances to the other samples' images best agree with the distances on
+//! X (an L1 trilateration),
+//!
+//! π(s_i) ← argmin_{anchors a} Σ_{j ≠ i} |d_X(s_i, s_j) − d_Y(a, π(s_j))|,
+//!
+//! for all i at once, repeated while E decreases. A part mapped to the wrong limb is pulled to the
+//! limb whose distances to the rest of the map fit. The isometry alone cannot tell a map from its
+//! mirror image: the candidates come from orientation-aware fits, and the rounds keep their
+//! orientation (every image is placed by the others).
+//!
+//! Cost: s + a shortest-path runs (once per shape), then s · a · s additions per round.
+
+use faer::Mat;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::geodesic::GraphGeodesics;
+use crate::shape::TriMesh;
+use crate::spatial::{farthest_point_samples, Samples};
+
+/// Options of the basin search.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SearchOptions {
+    /// Farthest-point samples of X the score and the correction are computed on (0: no search,
+    /// the candidates are compared by the metric distortion of their edges).
+    pub samples: usize,
+    /// Farthest-point anchors of Y: its distances, and the places a corrected image can take.
+    pub anchors: usize,
+    /// Rounds of the correction at most (0: none).
+    pub rounds: usize,
+}
+
+impl Default for SearchOptions {
+    fn default() -> Self {
+        SearchOptions { samples: 200, anchors: 500, rounds: 10 }
+    }
+}
+
+/// Farthest-point samples of a shape, the geodesic distances between them and each vertex's
+/// nearest sample.
+#[derive(Clone, Debug)]
+pub struct SampleDistances {
+    /// The samples (vertex ids and Voronoi-area weights).
+    pub samples: Samples,
+    /// d(s_i, s_j) (samples × samples).
+    pub distances: Mat<f64>,
+    /// For every vertex (length n) the position of its nearest sample in `samples`.
+    pub nearest: Vec<u32>,
+    /// Covering radius of the samples: the largest distance from a vertex to its nearest sample.
+    pub radius: f64,
+}
+
+impl SampleDistances {
+    /// `count` farthest-point samples of the surface `mesh` (vertex weights `mass`, length n),
+    /// their pairwise distances along `graph` (the edges of `mesh`) and the geodesic Voronoi
+    /// cells. Errors: fewer than 3 samples, and those of the sampling and of the graph.
+    pub fn new(mesh: &TriMesh, mass: &[f64], graph: &GraphGeodesics, count: usize) -> Result<Self> {
+        let samples = farthest_point_samples(mesh.vertices(), mass, count)?;
+        let s = samples.len();
+        if s < 3 {
+            return Err(Error::invalid("search samples", format!("need at least 3, got {s}")));
+        }
+        let v = &samples.vertices;
+        let rows: Vec<Vec<f64>> = v
+            .par_iter()
+            .map(|&a| graph.pair_distances(&v.iter().map(|&b| (a, b)).collect::<Vec<_>>()))
+            .collect::<Result<_>>()?;
+        let distances = Mat::from_fn(s, s, |i, j| 0.5 * (rows[i][j] + rows[j][i]));
+        let (to_nearest, nearest) = graph.nearest_sources(v)?;
+        let radius = to_nearest.iter().copied().filter(|r| r.is_finite()).fold(0.0, f64::max);
+        Ok(SampleDistances { samples, distances, nearest, radius })
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.samples.len()
+    }
+
+    /// Whether there is no sample (never true for a value built by [`SampleDistances::new`]).
+    pub fn is_empty(&self) -> bool {
+        self.samples.is_empty()
+    }
+}
+
+/// The anchors of Y (positions in `y.samples`) of the images of X's samples.
+fn anchors_of(y: &SampleDistances, images: &[usize]) -> Vec<usize> {
+    images.iter().map(|&v| y.nearest[v] as usize).collect()
+}
+
+/// E(π) of the module docs from X's samples (`x`), Y's anchors (`y`) and the images of X's
+/// samples (vertex ids of Y, length `x.len()`). Pairs at infinite distance on either shape
+/// (different components) are skipped; ∞ when no pair is left.
+pub fn distortion(x: &SampleDistances, y: &SampleDistances, images: &[usize]) -> f64 {
+    anchored_distortion(&x.distances, &y.distances, &anchors_of(y, images))
+}
+
+fn anchored_distortion(dx: &Mat<f64>, dy: &Mat<f64>, anchors: &[usize]) -> f64 {
+    let s = anchors.len();
+    let (mut num, mut den) = (0.0, 0.0);
+    for i in 0..s {
+        for j in (i + 1)..s {
+            let (a, b) = (dx[(i, j)], dy[(anchors[i], anchors[j])]);
+            if a.is_finite() && b.is_finite() {
+                num += (a - b).abs();
+                den += a;
+            }
+        }
+    }
+    if den > 0.0 {
+        num / den
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// One round of the correction (module docs): for every sample i of X the anchor of Y minimizing
+/// Σ_{j≠i} |d_X(s_i, s_j) − d_Y(a, π(s_j))| given the current anchors of the images (positions
+/// in `y.samples`); all samples against the same current images. `dy` holds Y's anchor distances
+/// in single precision, column by column, with unreachable pairs at a large finite value
+/// ([`finite_f32`]). Returns the new anchors.
+fn trilaterate(dx: &Mat<f64>, dy: &[f32], a: usize, current: &[usize]) -> Vec<usize> {
+    let s = current.len();
+    (0..s)
+        .into_par_iter()
+        .map(|i| {
+            let mut cost = vec![0.0f32; a];
+            for (j, &cj) in current.iter().enumerate() {
+                let t = dx[(i, j)];
+                if j == i || !t.is_finite() {
+                    continue;
+                }
+                let t = t as f32;
+                // Column cj: the distances of every anchor to the image of sample j.
+                for (c, d) in cost.iter_mut().zip(&dy[cj * a..(cj + 1) * a]) {
+                    *c += (t - d).abs();
+                }
+            }
+            let mut best = (f32::INFINITY, current[i]);
+            for (r, &c) in cost.iter().enumerate() {
+                if c < best.0 {
+                    best = (c, r);
+                }
+            }
+            best.1
+        })
+        .collect()
+}
+
+/// The a × a anchor distances as f32, column-major, ∞ (other components) replaced by ten times
+/// the largest finite distance: such a pair then costs more than any placement within a
+/// component. Single precision is ample for choosing among anchors (7 digits of distances
+/// between 10⁻³ and 10 on a unit-area shape); E itself is summed in f64.
+fn finite_f32(dy: &Mat<f64>) -> Vec<f32> {
+    let big = 10.0 * (0..dy.ncols()).flat_map(|j| dy.col_as_slice(j).iter()).copied().filter(|d| d.is_finite()).fold(0.0, f64::max);
+    (0..dy.ncols()).flat_map(|j| dy.col_as_slice(j).iter().map(move |&d| if d.is_finite() { d } else { big } as f32)).collect()
+}
+
+/// Neighbours of every sample for [`orientation`]: its `count` nearest other samples (by the
+/// geodesic distances between samples).
+pub fn sample_neighbours(x: &SampleDistances, count: usize) -> Vec<Vec<usize>> {
+    let s = x.len();
+    (0..s)
+        .map(|i| {
+            let mut others: Vec<usize> = (0..s).filter(|&j| j != i && x.distances[(i, j)].is_finite()).collect();
+            others.sort_by(|&a, &b| x.distances[(i, a)].total_cmp(&x.distances[(i, b)]));
+            others.truncate(count);
+            others
+        })
+        .collect()
+}
+
+/// Orientation of a map on samples, in [−1, 1]: the mean over the samples of X of the sign of
+/// det(Aᵢᵀ Bᵢ), where the rows of Aᵢ are the offsets from sample i to its neighbours
+/// (`neighbours`) in a tangent frame of X at i (oriented by X's normal) and the rows of Bᵢ the
+/// offsets between their images in a tangent frame of Y at i's image (oriented by Y's normal):
+/// the sign of the determinant of the least-squares linear map between the two tangent planes.
+/// +1 where the sample map preserves orientation, −1 where it mirrors. `px`, `nx` are X's
+/// positions and unit normals (length n), `py`, `ny` Y's (length m), `samples` X's samples and
+/// `images` their images (same length).
+pub fn orientation(
+    px: &[[f64; 3]],
+    nx: &[[f64; 3]],
+    py: &[[f64; 3]],
+    ny: &[[f64; 3]],
+    samples: &[usize],
+    images: &[usize],
+    neighbours: &[Vec<usize>],
+) -> f64 {
+    let frame = |n: [f64; 3]| -> ([f64; 3], [f64; 3]) {
+        let a = if n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+        let t1 = normalize(cross(a, n));
+        (t1, cross(n, t1))
+    };
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let mut sum = 0.0;
+    for (i, nb) in neighbours.iter().enumerate() {
+        let (xi, yi) = (samples[i], images[i]);
+        let ((u1, u2), (v1, v2)) = (frame(nx[xi]), frame(ny[yi]));
+        let mut m = [[0.0; 2]; 2];
+        for &j in nb {
+            let (a, b) = (sub(px[samples[j]], px[xi]), sub(py[images[j]], py[yi]));
+            let (a, b) = ([dot(a, u1), dot(a, u2)], [dot(b, v1), dot(b, v2)]);
+            for r in 0..2 {
+                for c in 0..2 {
+                    m[r][c] += a[r] * b[c];
+                }
+            }
+        }
+        let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
+        sum += det.signum() * f64::from(u8::from(det != 0.0));
+    }
+    sum / neighbours.len().max(1) as f64
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+fn normalize(a: [f64; 3]) -> [f64; 3] {
+    let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+    if l > 0.0 {
+        [a[0] / l, a[1] / l, a[2] / l]
+    } else {
+        a
+    }
+}
+
+/// What the correction did.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Correction {
+    /// E after each round, starting with the chosen candidate's.
+    pub trace: Vec<f64>,
+    /// Samples whose corrected image lies farther from the candidate's image than the covering
+    /// radius of X's samples (the resolution of the search: closer moves are within the spacing
+    /// of the samples and say nothing about the basin).
+    pub moved: usize,
+    /// The covering radius of X's samples (unit-area units).
+    pub radius: f64,
+}
+
+/// Rounds of trilateration from `images` (vertex ids of Y of X's samples) while E decreases, at
+/// most `rounds`. Returns the corrected images (vertex ids of Y: the anchors' vertices) and what
+/// the rounds did.
+pub fn correct(
+    x: &SampleDistances,
+    y: &SampleDistances,
+    images: &[usize],
+    rounds: usize,
+) -> Result<(Vec<usize>, Correction)> {
+    if images.len() != x.len() || images.iter().any(|&v| v >= y.nearest.len()) {
+        return Err(Error::invalid("images", format!("need {} vertex ids of Y < {}", x.len(), y.nearest.len())));
+    }
+    let (dx, dy) = (&x.distances, &y.distances);
+    let dy32 = finite_f32(dy);
+    let start = anchors_of(y, images);
+    let mut best = (anchored_distortion(dx, dy, &start), start.clone());
+    let mut trace = vec![best.0];
+    for _ in 0..rounds {
+        let next = trilaterate(dx, &dy32, dy.nrows(), &best.1);
+        if next == best.1 {
+            break;
+        }
+        let e = anchored_distortion(dx, dy, &next);
+        trace.push(e);
+        if !(e < best.0) {
+            break;
+        }
+        best = (e, next);
+    }
+    let corrected: Vec<usize> = best.1.iter().map(|&a| y.samples.vertices[a]).collect();
+    let moved = images.iter().zip(&corrected).filter(|(&b, &a)| has_moved(x, y, b, a)).count();
+    Ok((corrected, Correction { trace, moved, radius: x.radius }))
+}
+
+/// Whether a sample's image moved from the vertex `before` to `after` of Y by more than the
+/// covering radius of X's samples `x` (as counted in [`Correction::moved`]; distances between
+/// Y's anchors `y`).
+pub fn has_moved(x: &SampleDistances, y: &SampleDistances, before: usize, after: usize) -> bool {
+    y.distances[(y.nearest[before] as usize, y.nearest[after] as usize)] > x.radius
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::primitives::bumpy_sphere;
+
+    /// On a shape matched to itself, the true map scores 0; a map with some samples sent to the
+    /// antipode of their place scores higher, and the correction brings every one back.
+    #[test]
+    fn the_correction_repairs_misplaced_samples() {
+        let x = bumpy_sphere(3);
+        let n = x.n_vertices();
+        let mass = x.vertex_areas();
+        let g = GraphGeodesics::mesh_edges(&x).unwrap();
+        let side = SampleDistances::new(&x, &mass, &g, 60).unwrap();
+        assert_eq!(side.len(), 60);
+        assert!(side.radius > 0.0 && side.nearest.len() == n);
+        let truth = side.samples.vertices.clone();
+        assert!(distortion(&side, &side, &truth) < 1e-12);
+        let antipode = |v: usize| {
+            let p = x.vertices()[v];
+            let d = |u: usize| (0..3).map(|c| (x.vertices()[u][c] + p[c]).powi(2)).sum::<f64>();
+            (0..n).min_by(|&a, &b| d(a).total_cmp(&d(b))).unwrap()
+        };
+        let mut wrong = truth.clone();
+        for w in wrong.iter_mut().take(10) {
+            *w = antipode(*w);
+        }
+        let e = distortion(&side, &side, &wrong);
+        assert!(e > 0.05, "distortion of the wrong map {e}");
+        let (fixed, report) = correct(&side, &side, &wrong, 5).unwrap();
+        assert_eq!(fixed, truth, "trace {:?}", report.trace);
+        assert_eq!(report.moved, 10);
+        assert!(report.trace.len() >= 2 && report.trace.last().unwrap() < &1e-12);
+        assert!((0..10).all(|i| has_moved(&side, &side, wrong[i], fixed[i])));
+        assert!(!has_moved(&side, &side, wrong[20], fixed[20]));
+        assert!(SampleDistances::new(&x, &mass, &g, 2).is_err());
+        assert!(correct(&side, &side, &wrong[1..], 1).is_err());
+    }
+}
