@@ -24,6 +24,47 @@
 //! uniformly on the surface instead (vertices not shared). Errors are then measured on Y's mesh
 //! through the nearest vertex of each cloud point, and the template points of X are moved to the
 //! nearest cloud point. `KBASIS` sets the eigenpairs per shape (default 200).
+//!
+//! Perturbations (issue 27), all seeded by the shape's name (FNV-1a, mixed with `SEED`, default
+//! 0), so a run is reproduced exactly by its command line:
+//! - `PERTURB=x|y|both` (default `y`): the shapes that `NOISE`, `NONUNIFORM` and `OUTLIERS` act on.
+//! - `NOISE=σ`: isotropic Gaussian noise, standard deviation σ × the bounding-box diagonal per
+//!   coordinate, on every point of a cloud or every vertex of a mesh (a noisy mesh keeps its
+//!   faces).
+//! - `NONUNIFORM=1` (with `RESAMPLE=N`, on clouds): the N points are drawn with a density that
+//!   grows smoothly (exponentially) by a factor 5 along a random direction across the shape,
+//!   instead of uniformly.
+//! - `OUTLIERS=f` (on clouds): f × (surface points) extra points, uniform in the bounding box
+//!   enlarged by 10 %, appended after the surface points. They are matched like every point but
+//!   are never template points of X; a point of X mapped to an outlier of Y scores through the
+//!   outlier's nearest vertex.
+//! - `SCALE=1`: every shape (X and Y, whatever `PERTURB`) scaled by its own factor 10^u, u uniform
+//!   in [−3, 3]; `ROTATE=1`: every shape rotated by its own uniformly random rotation.
+//!
+//! Errors are always measured on the clean, unscaled mesh (geodesics / √area ×100): a mesh keeps
+//! its vertex ids; a cloud point maps to the nearest vertex of the clean position it was sampled
+//! from, and X's template vertices move to the nearest clean surface point (outliers excluded).
+//! With any perturbation the JSON line gets `"perturb"` (the settings) and, with `SCALE`,
+//! `"scale_x"`/`"scale_y"` (the factors).
+//!
+//! Reproducing the perturbed inputs (issue 27's data; `D=../shared/data/faust_r`, add `0:97`
+//! for every pair):
+//! ```sh
+//! E="cargo run --release --example accuracy_study --"
+//! CLOUD=y $E $D 0:97 "default:"                                    # mesh → vertex cloud
+//! CLOUD=both $E $D 0:97 "default:"                                 # cloud → cloud
+//! CLOUD=y RESAMPLE=5000 $E $D 0:97 "default:"                      # uniform resampled cloud
+//! CLOUD=y RESAMPLE=5000 NONUNIFORM=1 $E $D 0:97 "default:"         # non-uniform resampled cloud
+//! CLOUD=y RESAMPLE=5000 NOISE=0.005 $E $D 0:97 "default:"          # cloud, σ = 0.5 % noise
+//! CLOUD=y RESAMPLE=5000 OUTLIERS=0.01 $E $D 0:97 "default:"        # cloud, 1 % outliers
+//! NOISE=0.002 $E $D 0:97 "default:"                                # noisy mesh Y, σ = 0.2 %
+//! NOISE=0.005 $E $D 0:97 "default:"                                # noisy mesh Y, σ = 0.5 %
+//! NOISE=0.01 $E $D 0:97 "default:"                                 # noisy mesh Y, σ = 1 %
+//! SCALE=1 $E $D 0:97 "default:"                                    # each shape ×10^[−3, 3]
+//! SCALE=1 ROTATE=1 $E $D 0:97 "default:"                           # ... and rotated
+//! ```
+//! (`PERTURB=both` perturbs X as well; `CLOUD=both` makes both shapes clouds; the variables
+//! combine, e.g. `CLOUD=y RESAMPLE=5000 NONUNIFORM=1 NOISE=0.005 OUTLIERS=0.01`.)
 
 use std::io::Write;
 use std::path::Path;
@@ -109,14 +150,16 @@ fn wks(p: &PreparedShape, v: &Variant) -> Result<Descriptors> {
     )
 }
 
-/// A shape of the study: the prepared shape (mesh or cloud), its mesh for evaluation, and for
-/// clouds the nearest mesh vertex of every cloud point and the nearest cloud point of every
-/// mesh vertex.
+/// A shape of the study: the prepared shape (mesh or cloud, perturbed), its clean mesh for
+/// evaluation, for clouds the nearest clean mesh vertex of every cloud point and the nearest
+/// clean surface point of every mesh vertex, and the random scale factor applied (1 without
+/// `SCALE`).
 struct StudyShape {
     prepared: PreparedShape,
     mesh: TriMesh,
     point_to_vertex: Option<Vec<usize>>,
     vertex_to_point: Option<Vec<usize>>,
+    factor: f64,
 }
 
 fn nearest(reference: &[[f64; 3]], query: &[[f64; 3]]) -> Vec<usize> {
@@ -124,27 +167,276 @@ fn nearest(reference: &[[f64; 3]], query: &[[f64; 3]]) -> Vec<usize> {
     query.iter().map(|q| tree.nearest_one::<kiddo::SquaredEuclidean>(q).item as usize).collect()
 }
 
+/// The study's inputs and their perturbations, read from the environment (see the header).
+#[derive(Clone, Debug)]
+struct Perturb {
+    /// `CLOUD`: "" (meshes), "y" or "both".
+    cloud: String,
+    /// `RESAMPLE`: surface samples per cloud (0: the vertices).
+    resample: usize,
+    /// `PERTURB`: "x", "y" or "both", the shapes noise, non-uniform sampling and outliers act on.
+    targets: String,
+    /// `NOISE`: Gaussian σ as a fraction of the bounding-box diagonal.
+    noise: f64,
+    /// `NONUNIFORM`: density ratio 5 along a random direction instead of uniform samples.
+    nonuniform: bool,
+    /// `OUTLIERS`: outliers as a fraction of the surface points.
+    outliers: f64,
+    /// `SCALE`: every shape ×10^u, u uniform in [−3, 3].
+    scale: bool,
+    /// `ROTATE`: every shape randomly rotated.
+    rotate: bool,
+    /// `SEED`: mixed into every shape's seed.
+    seed: u64,
+}
+
+/// Density ratio between the two ends of a shape in non-uniform sampling.
+const DENSITY_RATIO: f64 = 5.0;
+
+impl Perturb {
+    fn from_env() -> Perturb {
+        let env = |k: &str| std::env::var(k).ok().filter(|s| !s.is_empty());
+        let num =
+            |k: &str| env(k).map_or(0.0, |s| s.parse::<f64>().unwrap_or_else(|_| panic!("{k}={s}: not a number")));
+        let flag = |k: &str| env(k).is_some_and(|s| s != "0");
+        let p = Perturb {
+            cloud: env("CLOUD").unwrap_or_default(),
+            resample: env("RESAMPLE").map_or(0, |s| s.parse().expect("RESAMPLE=N")),
+            targets: env("PERTURB").unwrap_or_else(|| "y".into()),
+            noise: num("NOISE"),
+            nonuniform: flag("NONUNIFORM"),
+            outliers: num("OUTLIERS"),
+            scale: flag("SCALE"),
+            rotate: flag("ROTATE"),
+            seed: env("SEED").map_or(0, |s| s.parse().expect("SEED=integer")),
+        };
+        assert!(["", "y", "both"].contains(&p.cloud.as_str()), "CLOUD must be y or both");
+        assert!(["x", "y", "both"].contains(&p.targets.as_str()), "PERTURB must be x, y or both");
+        assert!(p.noise >= 0.0 && p.outliers >= 0.0, "NOISE and OUTLIERS must be ≥ 0");
+        let perturbed_cloud = [false, true].iter().any(|&t| p.perturbs(t) && p.is_cloud(t));
+        if p.nonuniform {
+            assert!(
+                p.resample > 0 && perturbed_cloud,
+                "NONUNIFORM needs RESAMPLE=N and a perturbed cloud (CLOUD, PERTURB)"
+            );
+        }
+        if p.outliers > 0.0 {
+            assert!(perturbed_cloud, "OUTLIERS needs a perturbed cloud (CLOUD, PERTURB)");
+        }
+        p
+    }
+
+    /// Whether the shape (X: `target` false, Y: true) is given as a point cloud.
+    fn is_cloud(&self, target: bool) -> bool {
+        self.cloud == "both" || (self.cloud == "y" && target)
+    }
+
+    /// Whether `NOISE`, `NONUNIFORM` and `OUTLIERS` act on the shape.
+    fn perturbs(&self, target: bool) -> bool {
+        self.targets == "both" || (self.targets == "y") == target
+    }
+
+    /// The settings for the JSON line; empty without any perturbation.
+    fn describe(&self) -> String {
+        let mut parts = Vec::new();
+        if self.noise > 0.0 {
+            parts.push(format!("noise={}", self.noise));
+        }
+        if self.nonuniform {
+            parts.push(format!("nonuniform={DENSITY_RATIO}"));
+        }
+        if self.outliers > 0.0 {
+            parts.push(format!("outliers={}", self.outliers));
+        }
+        let mut s = if parts.is_empty() { String::new() } else { format!("{}:{}", self.targets, parts.join(",")) };
+        for (on, what) in [(self.scale, "scale"), (self.rotate, "rotate")] {
+            if on {
+                s += if s.is_empty() { "" } else { ";" };
+                s += what;
+            }
+        }
+        if !s.is_empty() && self.seed != 0 {
+            s += &format!(";seed={}", self.seed);
+        }
+        s
+    }
+}
+
+/// SplitMix64 with Box–Muller normals: a tiny deterministic generator (the crate's own is
+/// private), the same numbers on every platform.
+struct Rng(u64);
+
+impl Rng {
+    /// The generator of one random `stream` ("noise", "outliers", ...) of shape `name`: FNV-1a of
+    /// both, mixed with `seed`, so each stream is independent of which others are switched on.
+    fn for_shape(name: &str, stream: &str, seed: u64) -> Rng {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        for b in name.bytes().chain([0]).chain(stream.bytes()) {
+            h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+        }
+        Rng(h ^ seed.wrapping_mul(0x9E37_79B9_7F4A_7C15))
+    }
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in (0, 1).
+    fn uniform(&mut self) -> f64 {
+        ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+    /// Standard normal.
+    fn normal(&mut self) -> f64 {
+        let (u, v) = (self.uniform(), self.uniform());
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+}
+
+/// Length of the bounding-box diagonal of `points`.
+fn diagonal(points: &[[f64; 3]]) -> f64 {
+    let (lo, hi) = bounding_box(points);
+    (0..3).map(|d| (hi[d] - lo[d]).powi(2)).sum::<f64>().sqrt()
+}
+
+/// The axis-aligned bounding box (min, max) of `points`.
+fn bounding_box(points: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
+    points.iter().fold(([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]), |(lo, hi), p| {
+        (std::array::from_fn(|d| lo[d].min(p[d])), std::array::from_fn(|d| hi[d].max(p[d])))
+    })
+}
+
+/// Isotropic Gaussian noise: every coordinate of every point moved by a normal sample of standard
+/// deviation `sigma` (absolute units; the study passes σ × the clean bounding-box diagonal).
+fn add_noise(points: &mut [[f64; 3]], sigma: f64, rng: &mut Rng) {
+    for p in points {
+        for c in p.iter_mut() {
+            *c += sigma * rng.normal();
+        }
+    }
+}
+
+/// `count` points on `mesh` with a density proportional to `ratio^t`, t ∈ [0, 1] the position
+/// along a random unit direction between the mesh's two extreme vertices in that direction (so
+/// the density changes smoothly by `ratio` from one end to the other). Rejection sampling of the
+/// mesh's uniform surface samples, hence exact for any triangle size.
+fn sample_nonuniform(mesh: &TriMesh, count: usize, ratio: f64, rng: &mut Rng) -> Result<Vec<[f64; 3]>> {
+    let dir = loop {
+        let d = [rng.normal(), rng.normal(), rng.normal()];
+        let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        if n > 1e-6 {
+            break d.map(|c| c / n);
+        }
+    };
+    let along = |p: &[f64; 3]| p[0] * dir[0] + p[1] * dir[1] + p[2] * dir[2];
+    let (lo, hi) =
+        mesh.vertices().iter().map(along).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), t| (a.min(t), b.max(t)));
+    let mut points = Vec::with_capacity(count);
+    while points.len() < count {
+        // Acceptance averages (ratio − 1) / (ratio ln ratio) ≈ 0.5 for ratio 5.
+        let batch = mesh.sample_surface(2 * (count - points.len()) + 16, rng.next_u64())?;
+        for p in batch {
+            let t = ((along(&p) - lo) / (hi - lo)).clamp(0.0, 1.0);
+            if points.len() < count && rng.uniform() < ratio.powf(t - 1.0) {
+                points.push(p);
+            }
+        }
+    }
+    Ok(points)
+}
+
+/// Appends round(`fraction` × len) outliers, uniform in the bounding box of `points` enlarged by
+/// 10 % (5 % of its extent beyond each face); returns how many.
+fn add_outliers(points: &mut Vec<[f64; 3]>, fraction: f64, rng: &mut Rng) -> usize {
+    let (lo, hi) = bounding_box(points);
+    let count = (fraction * points.len() as f64).round() as usize;
+    for _ in 0..count {
+        points.push(std::array::from_fn(|d| lo[d] - 0.05 * (hi[d] - lo[d]) + 1.1 * (hi[d] - lo[d]) * rng.uniform()));
+    }
+    count
+}
+
+/// A random scale factor 10^u, u uniform in [−3, 3].
+fn random_scale(rng: &mut Rng) -> f64 {
+    10f64.powf(6.0 * rng.uniform() - 3.0)
+}
+
+/// A uniformly random rotation (a normalized Gaussian quaternion), as a matrix.
+fn random_rotation(rng: &mut Rng) -> [[f64; 3]; 3] {
+    let q = [rng.normal(), rng.normal(), rng.normal(), rng.normal()];
+    let n = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+    let [w, x, y, z] = q.map(|c| c / n);
+    [
+        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)],
+        [2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)],
+        [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)],
+    ]
+}
+
+/// Every point scaled by `factor` and rotated by `rotation` (about the origin).
+fn transform(points: &mut [[f64; 3]], factor: f64, rotation: &[[f64; 3]; 3]) {
+    for p in points {
+        let q = *p;
+        *p = std::array::from_fn(|i| factor * (rotation[i][0] * q[0] + rotation[i][1] * q[1] + rotation[i][2] * q[2]));
+    }
+}
+
+/// Loads shape `name` (X: `target` false, Y: true), makes it a cloud if asked, perturbs it
+/// (noise, non-uniform sampling, outliers, scale, rotation) and prepares it; the evaluation maps
+/// are computed from the clean positions.
 fn prepare(
     ds: &Dataset,
     name: &str,
-    as_cloud: bool,
-    resample: usize,
+    target: bool,
+    pt: &Perturb,
     k: usize,
     cache: Option<&BasisCache>,
 ) -> Result<StudyShape> {
     let Shape::Mesh(mesh) = Shape::load(ds.shape_path(name)?)? else {
         return Err(funcorr::Error::invalid("dataset", format!("{name} is not a mesh")));
     };
-    if !as_cloud {
-        let prepared = PreparedShape::new(Shape::Mesh(mesh.clone()), LaplacianChoice::Auto, k, cache)?;
-        return Ok(StudyShape { prepared, mesh, point_to_vertex: None, vertex_to_point: None });
+    let rng = |stream: &str| Rng::for_shape(name, stream, pt.seed);
+    let perturbed = pt.perturbs(target);
+    let sigma = if perturbed { pt.noise * diagonal(mesh.vertices()) } else { 0.0 };
+    let factor = if pt.scale { random_scale(&mut rng("scale")) } else { 1.0 };
+    let rotation = if pt.rotate {
+        random_rotation(&mut rng("rotate"))
+    } else {
+        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    };
+    // Noise, then scale and rotation, on a copy of the clean positions.
+    let finish = |clean: &[[f64; 3]], surface: usize| {
+        let mut p = clean.to_vec();
+        if sigma > 0.0 {
+            add_noise(&mut p[..surface], sigma, &mut rng("noise"));
+        }
+        transform(&mut p, factor, &rotation);
+        p
+    };
+    if !pt.is_cloud(target) {
+        let moved = finish(mesh.vertices(), mesh.n_vertices());
+        let shape = TriMesh::new(moved, mesh.faces().to_vec())?;
+        let prepared = PreparedShape::new(Shape::Mesh(shape), LaplacianChoice::Auto, k, cache)?;
+        return Ok(StudyShape { prepared, mesh, point_to_vertex: None, vertex_to_point: None, factor });
     }
-    let points: Vec<[f64; 3]> = if resample > 0 { mesh.sample_surface(resample, 7)? } else { mesh.vertices().to_vec() };
+    let mut clean: Vec<[f64; 3]> = if pt.resample == 0 {
+        mesh.vertices().to_vec()
+    } else if perturbed && pt.nonuniform {
+        sample_nonuniform(&mesh, pt.resample, DENSITY_RATIO, &mut rng("sample"))?
+    } else {
+        mesh.sample_surface(pt.resample, 7)?
+    };
+    let surface = clean.len();
+    if perturbed && pt.outliers > 0.0 {
+        add_outliers(&mut clean, pt.outliers, &mut rng("outliers"));
+    }
+    let points = finish(&clean, surface);
     let cloud = PointSet::new(points.len(), 3, points.iter().flatten().copied().collect())?;
     let prepared = PreparedShape::new(Shape::Points(cloud), LaplacianChoice::Auto, k, cache)?;
-    let p2v = nearest(mesh.vertices(), &points);
-    let v2p = nearest(&points, mesh.vertices());
-    Ok(StudyShape { prepared, mesh, point_to_vertex: Some(p2v), vertex_to_point: Some(v2p) })
+    let p2v = nearest(mesh.vertices(), &clean);
+    let v2p = nearest(&clean[..surface], mesh.vertices());
+    Ok(StudyShape { prepared, mesh, point_to_vertex: Some(p2v), vertex_to_point: Some(v2p), factor })
 }
 
 fn main() -> Result<()> {
@@ -166,8 +458,8 @@ fn main() -> Result<()> {
     let variants: Vec<Variant> = args[2].split(';').filter(|s| !s.is_empty()).map(Variant::parse).collect();
     let env = |k: &str| std::env::var(k).ok();
     let kbasis: usize = env("KBASIS").map(|s| s.parse().unwrap()).unwrap_or(200);
-    let cloud = env("CLOUD").unwrap_or_default();
-    let resample: usize = env("RESAMPLE").map(|s| s.parse().unwrap()).unwrap_or(0);
+    let pt = Perturb::from_env();
+    let perturb = pt.describe();
     let cache = BasisCache::default_dir().map(BasisCache::new);
     let t = Instant::now();
     // (name, is_target) for every shape needed.
@@ -178,8 +470,7 @@ fn main() -> Result<()> {
     let shapes: Vec<((String, bool), StudyShape)> = needed
         .par_iter()
         .map(|(n, target)| {
-            let as_cloud = cloud == "both" || (cloud == "y" && *target);
-            let s = prepare(&ds, n, as_cloud, resample, kbasis, cache.as_ref()).unwrap_or_else(|e| panic!("{n}: {e}"));
+            let s = prepare(&ds, n, *target, &pt, kbasis, cache.as_ref()).unwrap_or_else(|e| panic!("{n}: {e}"));
             ((n.clone(), *target), s)
         })
         .collect();
@@ -240,8 +531,15 @@ fn main() -> Result<()> {
                         _ => "null".to_string(),
                     };
                     let stages: Vec<String> = r.stages.iter().map(|(n, s)| format!("\"{n}\":{s:.3}")).collect();
+                    let mut extra = String::new();
+                    if !perturb.is_empty() {
+                        extra += &format!(",\"perturb\":\"{perturb}\"");
+                    }
+                    if pt.scale {
+                        extra += &format!(",\"scale_x\":{:.6e},\"scale_y\":{:.6e}", x.factor, y.factor);
+                    }
                     format!(
-                        "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"variant\":\"{}\",\"direct\":{d:.3},\"sym\":{s:.3},\"seconds\":{secs:.3},\"agree\":{agree:.3},\"distortion\":{dist:.4},\"k\":{chosen},\"search\":{search},\"stages\":{{{}}}}}",
+                        "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"variant\":\"{}\",\"direct\":{d:.3},\"sym\":{s:.3},\"seconds\":{secs:.3},\"agree\":{agree:.3},\"distortion\":{dist:.4},\"k\":{chosen},\"search\":{search},\"stages\":{{{}}}{extra}}}",
                         v.name,
                         stages.join(",")
                     )

@@ -29,9 +29,9 @@ use crate::descriptors::{self, Descriptors};
 use crate::error::{Error, Result};
 use crate::fmap::axiomatic::{axiomatic_sizes, AxiomaticOptions, ShapeData};
 use crate::fmap::energy::{EnergyWeights, Orientation};
+use crate::geodesic::GraphGeodesics;
 use crate::prepared::PreparedShape;
 use crate::refine::{self, ZoomOutOptions};
-use crate::geodesic::GraphGeodesics;
 use crate::spatial::{farthest_point_samples, Samples};
 
 use super::search::{self, SampleDistances, SearchOptions};
@@ -157,14 +157,23 @@ pub struct Candidate {
     /// Orientation agreement of its probe map ([`crate::refine::orientation_agreement`], around
     /// the search samples with the basin search).
     pub orientation: f64,
-    /// Geodesic distortion after the correction of its samples (NaN without it).
+    /// Mean descriptor misfit ‖F(s_i) − G(π(s_i))‖ of its probe map on the search samples, in
+    /// the fits' data (NaN without the search).
+    pub data_misfit: f64,
+    /// Geodesic distortion after the correction of its samples by distances and data
+    /// ([`super::search::correct`] with descriptors; NaN without it).
     pub corrected_distortion: f64,
-    /// Orientation of the corrected sample map ([`super::search::orientation`]; NaN without it).
+    /// Orientation of that corrected sample map ([`super::search::orientation`]; NaN without it).
     pub corrected_orientation: f64,
-    /// Samples the correction moved.
+    /// Samples that correction moved.
     pub moved: usize,
-    /// For the candidate made of a corrected sample map: the candidate it was corrected from.
-    pub corrected_from: Option<usize>,
+    /// Geodesic distortion after the correction by distances alone (NaN without it).
+    pub geodesic_corrected_distortion: f64,
+    /// Orientation of that corrected sample map.
+    pub geodesic_corrected_orientation: f64,
+    /// For a candidate made of a corrected sample map: the candidate it was corrected from, and
+    /// whether by distances and data (true) or by distances alone.
+    pub corrected_from: Option<(usize, bool)>,
 }
 
 impl Candidate {
@@ -174,9 +183,12 @@ impl Candidate {
             k,
             distortion: f64::NAN,
             orientation: f64::NAN,
+            data_misfit: f64::NAN,
             corrected_distortion: f64::NAN,
             corrected_orientation: f64::NAN,
             moved: 0,
+            geodesic_corrected_distortion: f64::NAN,
+            geodesic_corrected_orientation: f64::NAN,
             corrected_from: None,
         }
     }
@@ -329,7 +341,9 @@ pub fn axiomatic_pipeline(
             );
             let sx = sx?;
             let neighbours = search::sample_neighbours(&sx, ORIENTATION_NEIGHBOURS);
-            Some(Search { x: sx, y: sy?, neighbours })
+            let sy = sy?;
+            let descriptors = search::descriptor_distances(&sx, &sy, fx.values.as_ref(), gy.values.as_ref());
+            Some(Search { x: sx, y: sy, neighbours, descriptors })
         }
         _ => None,
     };
@@ -359,6 +373,7 @@ pub fn axiomatic_pipeline(
         centres,
         search: &search,
         scale,
+        data: (&fx, &gy),
     };
     // The candidates are probed independently, in parallel.
     let mut probed: Vec<Probe> = fits
@@ -366,50 +381,88 @@ pub fn axiomatic_pipeline(
         .zip(p.candidates.par_iter())
         .map(|(c, &k)| {
             if fits.len() == 1 && search.is_none() {
-                return Ok(Probe { candidate: Candidate::unscored(k), c: None, images: None, corrected: None });
+                return Ok(Probe { candidate: Candidate::unscored(k), c: None, images: None, corrected: [None, None] });
             }
             ctx.probe(c, k, true)
         })
         .collect::<Result<_>>()?;
     stages.push(("candidate probes".to_string(), t.elapsed().as_secs_f64()));
-    // The correction (module `search`): the candidates' corrected sample maps of the asked
-    // orientation, the one of lowest distortion becomes one more candidate (its moved samples
-    // take their corrected images, the others keep theirs), probed as the others.
+    // The correction (module `search`): for each of its two forms (distances and data, distances
+    // alone), the candidates' corrected sample maps of the asked orientation; the one of lowest
+    // distortion becomes one more candidate (its moved samples take their corrected images, the
+    // others keep theirs), probed as the others.
     let t = std::time::Instant::now();
     let mut correction = None;
     let mut starts: Vec<Mat<f64>> = fits;
     if let Some(s) = &search {
-        let scored: Vec<Candidate> = probed
-            .iter()
-            .map(|q| Candidate {
-                distortion: q.candidate.corrected_distortion,
-                orientation: q.candidate.corrected_orientation,
-                ..q.candidate.clone()
-            })
-            .collect();
-        let from = choose(&scored, p.fit.orientation);
-        // The samples the correction moved away from the best candidate's images by more than
-        // the search's resolution take their corrected images, the others keep the best
-        // candidate's: when none moved, the best candidate is in the right basin as it is.
-        let best = choose(&probed.iter().map(|q| q.candidate.clone()).collect::<Vec<_>>(), p.fit.orientation);
-        if let (Some((fixed, mut report)), Some(images)) = (probed[from].corrected.take(), probed[best].images.as_ref()) {
-            let moved: Vec<bool> = images.iter().zip(&fixed).map(|(&o, &f)| search::has_moved(&s.x, &s.y, o, f)).collect();
+        let originals = probed.len();
+        // The hybrid sample map of each form (cheap), then their probes, in parallel.
+        let mut hybrids: Vec<(usize, bool, Vec<usize>)> = Vec::new();
+        for joint in [true, false] {
+            let scored: Vec<Candidate> = probed[..originals]
+                .iter()
+                .map(|q| {
+                    let c = &q.candidate;
+                    let (distortion, orientation) = if joint {
+                        (c.corrected_distortion, c.corrected_orientation)
+                    } else {
+                        (c.geodesic_corrected_distortion, c.geodesic_corrected_orientation)
+                    };
+                    Candidate { distortion, orientation, ..c.clone() }
+                })
+                .collect();
+            let from = choose(&scored, p.fit.orientation, |c| c.distortion);
+            let slot = usize::from(!joint);
+            let (Some((fixed, mut report)), Some(images)) =
+                (probed[from].corrected[slot].take(), probed[from].images.as_ref())
+            else {
+                continue;
+            };
+            // The samples the correction moved away from the candidate's images by more than
+            // the search's resolution take their corrected images, the others keep the
+            // candidate's.
+            let moved: Vec<bool> =
+                images.iter().zip(&fixed).map(|(&o, &f)| search::has_moved(&s.x, &s.y, o, f)).collect();
             report.moved = moved.iter().filter(|&&m| m).count();
             if report.moved > 0 {
                 let hybrid: Vec<usize> =
                     fixed.iter().zip(images).zip(&moved).map(|((&f, &o), &m)| if m { f } else { o }).collect();
-                let k0 = p.candidates.iter().copied().min().unwrap_or(1).min(s.x.len() / 4).max(1);
-                let c0 = refine::pullback(phi, psi, &s.x.samples, &hybrid, k0, k0)?;
-                let mut q = ctx.probe(&c0, k0, false)?;
-                q.candidate.corrected_from = Some(from);
-                probed.push(q);
-                starts.push(c0);
+                hybrids.push((from, joint, hybrid));
             }
-            correction = Some(report);
+            if joint {
+                correction = Some(report);
+            }
+        }
+        let k0 = p.candidates.iter().copied().min().unwrap_or(1).min(s.x.len() / 4).max(1);
+        let extra: Vec<(Probe, Mat<f64>)> = hybrids
+            .par_iter()
+            .map(|(from, joint, hybrid)| {
+                let c0 = refine::pullback(phi, psi, &s.x.samples, hybrid, k0, k0)?;
+                let mut q = ctx.probe(&c0, k0, false)?;
+                q.candidate.corrected_from = Some((*from, *joint));
+                Ok((q, c0))
+            })
+            .collect::<Result<_>>()?;
+        for (q, c0) in extra {
+            probed.push(q);
+            starts.push(c0);
         }
     }
     let candidates: Vec<Candidate> = probed.iter().map(|p| p.candidate.clone()).collect();
-    let chosen = choose(&candidates, p.fit.orientation);
+    // With the search: the geodesic distortion and the data misfit, each in units of its median
+    // over the candidates (a map that fits distances by sliding a limb along itself fits the
+    // data worse; one with a limb swapped for its mirror image fits distances worse).
+    let median = |f: &dyn Fn(&Candidate) -> f64| {
+        let mut v: Vec<f64> = candidates.iter().map(f).filter(|x| x.is_finite() && *x > 0.0).collect();
+        v.sort_by(|a, b| a.total_cmp(b));
+        v.get(v.len() / 2).copied().unwrap_or(1.0)
+    };
+    let (me, md) = (median(&|c| c.distortion), median(&|c| c.data_misfit));
+    let chosen = if search.is_some() {
+        choose(&candidates, p.fit.orientation, |c| c.distortion / me + c.data_misfit / md)
+    } else {
+        choose(&candidates, p.fit.orientation, |c| c.distortion)
+    };
     stages.push(("correction".to_string(), t.elapsed().as_secs_f64()));
     let c_fit = starts.swap_remove(chosen);
     // The final refinement starts from the fit, or (continue_probe) from the probe's result.
@@ -433,6 +486,8 @@ struct ProbeContext<'a> {
     centres: &'a [usize],
     search: &'a Option<Search>,
     scale: f64,
+    /// The fits' data F (n × q), G (m × q).
+    data: (&'a Descriptors, &'a Descriptors),
 }
 
 impl ProbeContext<'_> {
@@ -461,7 +516,9 @@ impl ProbeContext<'_> {
             _ => {
                 let c = refine::zoomout_fmap(phi, psi, self.probe_samples, c.as_ref(), &o)?;
                 let map = match self.patch {
-                    Some(patch) => spread(phi.nrows(), patch, &refine::map_of_pullback(phi, psi, c.as_ref(), Some(patch))?),
+                    Some(patch) => {
+                        spread(phi.nrows(), patch, &refine::map_of_pullback(phi, psi, c.as_ref(), Some(patch))?)
+                    }
                     None => refine::map_of_pullback(phi, psi, c.as_ref(), None)?,
                 };
                 (c, map)
@@ -479,6 +536,15 @@ impl ProbeContext<'_> {
             (Some(s), _, _) => {
                 let images: Vec<usize> = s.x.samples.vertices.iter().map(|&v| map[v]).collect();
                 candidate.distortion = search::distortion(&s.x, &s.y, &images);
+                let (f, g) = (&self.data.0.values, &self.data.1.values);
+                candidate.data_misfit =
+                    s.x.samples
+                        .vertices
+                        .iter()
+                        .zip(&images)
+                        .map(|(&v, &w)| (0..f.ncols()).map(|c| (f[(v, c)] - g[(w, c)]).powi(2)).sum::<f64>().sqrt())
+                        .sum::<f64>()
+                        / images.len() as f64;
                 Some(images)
             }
             (None, Some(tx), Some(py)) => {
@@ -491,18 +557,28 @@ impl ProbeContext<'_> {
             }
             _ => None,
         };
-        // The correction of this candidate's samples, and the orientation of its result.
-        let corrected = match (self.search, &images, x.positions(), x.normals(), py, ny) {
-            (Some(s), Some(images), Some(px), Some(nx), Some(py), Some(ny)) if correct && p.search.rounds > 0 => {
-                let (fixed, report) = search::correct(&s.x, &s.y, images, p.search.rounds)?;
+        // The corrections of this candidate's samples (by distances and data, by distances
+        // alone), and the orientation of their results.
+        let mut corrected = [None, None];
+        if let (Some(s), Some(images), Some(px), Some(nx), Some(py), Some(ny)) =
+            (self.search, &images, x.positions(), x.normals(), py, ny)
+        {
+            if correct && p.search.rounds > 0 {
                 let xs = &s.x.samples.vertices;
-                candidate.corrected_distortion = report.trace.iter().copied().fold(f64::INFINITY, f64::min);
-                candidate.corrected_orientation = search::orientation(px, nx, py, ny, xs, &fixed, &s.neighbours);
-                candidate.moved = report.moved;
-                Some((fixed, report))
+                for (slot, desc) in [Some(&s.descriptors), None].into_iter().enumerate() {
+                    let (fixed, report) = search::correct(&s.x, &s.y, images, desc, p.search.rounds)?;
+                    let e = report.trace.iter().copied().fold(f64::INFINITY, f64::min);
+                    let o = search::orientation(px, nx, py, ny, xs, &fixed, &s.neighbours);
+                    if slot == 0 {
+                        (candidate.corrected_distortion, candidate.corrected_orientation) = (e, o);
+                        candidate.moved = report.moved;
+                    } else {
+                        (candidate.geodesic_corrected_distortion, candidate.geodesic_corrected_orientation) = (e, o);
+                    }
+                    corrected[slot] = Some((fixed, report));
+                }
             }
-            _ => None,
-        };
+        }
         Ok(Probe { candidate, c: Some(c), images, corrected })
     }
 }
@@ -513,6 +589,8 @@ struct Search {
     x: SampleDistances,
     y: SampleDistances,
     neighbours: Vec<Vec<usize>>,
+    /// ‖F(s_i) − G(a)‖ between X's samples and Y's anchors, from the fits' data.
+    descriptors: Mat<f64>,
 }
 
 /// Neighbours per sample in the orientation of sample maps ([`search::orientation`]).
@@ -524,7 +602,8 @@ struct Probe {
     candidate: Candidate,
     c: Option<Mat<f64>>,
     images: Option<Vec<usize>>,
-    corrected: Option<(Vec<usize>, search::Correction)>,
+    /// The corrections by distances and data, and by distances alone.
+    corrected: [Option<(Vec<usize>, search::Correction)>; 2],
 }
 
 /// A map of length n from the images of the vertices `rows` (0 elsewhere, unread).
@@ -534,10 +613,10 @@ fn spread(n: usize, rows: &[usize], images: &[usize]) -> Vec<usize> {
     map
 }
 
-/// The candidate with the smallest distortion among those whose orientation agrees with the
-/// asked one (orientation ≥ 0 for preserving maps, ≤ 0 for reversing ones; all when none does
-/// or orientation is ignored); the first candidate when no distortion could be measured.
-fn choose(candidates: &[Candidate], orientation: Orientation) -> usize {
+/// The candidate with the smallest `score` among those whose orientation agrees with the asked
+/// one (orientation ≥ 0 for preserving maps, ≤ 0 for reversing ones; all when none does or
+/// orientation is ignored); the first candidate when no score could be measured (NaN).
+fn choose(candidates: &[Candidate], orientation: Orientation, score: impl Fn(&Candidate) -> f64) -> usize {
     let agrees = |c: &Candidate| match orientation {
         Orientation::Preserve => !(c.orientation < 0.0),
         Orientation::Reverse => !(c.orientation > 0.0),
@@ -547,7 +626,7 @@ fn choose(candidates: &[Candidate], orientation: Orientation) -> usize {
     (0..candidates.len())
         .filter(|&a| !any || agrees(&candidates[a]))
         .min_by(|&a, &b| {
-            let (da, db) = (candidates[a].distortion, candidates[b].distortion);
+            let (da, db) = (score(&candidates[a]), score(&candidates[b]));
             match (da.is_nan(), db.is_nan()) {
                 (false, false) => da.total_cmp(&db),
                 (true, false) => std::cmp::Ordering::Greater,

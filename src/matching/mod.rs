@@ -488,7 +488,18 @@ fn run_with_gradients(
         (Some((_, map_yx)), Refine::None) => map_yx.clone(),
         _ => timed(&mut stages, "map Y → X", || pointwise::map_yx_from_fmap(phi, psi, c.as_ref()))?,
     };
-    Ok(MatchResult { map_xy, map_yx, c, c_method, coefficients, factors, solver, stages, candidates: None, correction: None })
+    Ok(MatchResult {
+        map_xy,
+        map_yx,
+        c,
+        c_method,
+        coefficients,
+        factors,
+        solver,
+        stages,
+        candidates: None,
+        correction: None,
+    })
 }
 
 /// [`run`] on prepared shapes: the axiomatic method, which needs their surfaces, and every other

@@ -31,7 +31,7 @@
 //!
 //! Cost: s + a shortest-path runs (once per shape), then s · a · s additions per round.
 
-use faer::Mat;
+use faer::{Mat, MatRef};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -135,32 +135,45 @@ fn anchored_distortion(dx: &Mat<f64>, dy: &Mat<f64>, anchors: &[usize]) -> f64 {
     }
 }
 
-/// One round of the correction (module docs): for every sample i of X the anchor of Y minimizing
-/// Σ_{j≠i} |d_X(s_i, s_j) − d_Y(a, π(s_j))| given the current anchors of the images (positions
-/// in `y.samples`); all samples against the same current images. `dy` holds Y's anchor distances
-/// in single precision, column by column, with unreachable pairs at a large finite value
-/// ([`finite_f32`]). Returns the new anchors.
-fn trilaterate(dx: &Mat<f64>, dy: &[f32], a: usize, current: &[usize]) -> Vec<usize> {
+/// One round of the correction (module docs): for every sample i of X the anchor a of Y
+/// minimizing its cost in the energy J of [`correct`],
+/// mean_{j≠i} |d_X(s_i, s_j) − d_Y(a, π(s_j))| / δ̄ + ‖F(s_i) − G(a)‖ / σ̄,
+/// given the current anchors of the images (positions in `y.samples`), all samples against the
+/// same current images. `dy` holds Y's anchor distances in single precision, column by column,
+/// with unreachable pairs at a large finite value ([`finite_f32`]); `desc` (s × a, optional) the
+/// descriptor distances ‖F(s_i) − G(a)‖; `scales` = (δ̄, σ̄). Returns the new anchors.
+fn trilaterate(
+    dx: &Mat<f64>,
+    dy: &[f32],
+    a: usize,
+    current: &[usize],
+    desc: Option<&Mat<f64>>,
+    scales: (f64, f64),
+) -> Vec<usize> {
     let s = current.len();
     (0..s)
         .into_par_iter()
         .map(|i| {
             let mut cost = vec![0.0f32; a];
+            let mut pairs = 0usize;
             for (j, &cj) in current.iter().enumerate() {
                 let t = dx[(i, j)];
                 if j == i || !t.is_finite() {
                     continue;
                 }
+                pairs += 1;
                 let t = t as f32;
                 // Column cj: the distances of every anchor to the image of sample j.
                 for (c, d) in cost.iter_mut().zip(&dy[cj * a..(cj + 1) * a]) {
                     *c += (t - d).abs();
                 }
             }
-            let mut best = (f32::INFINITY, current[i]);
+            let geo = 1.0 / (pairs.max(1) as f64 * scales.0);
+            let mut best = (f64::INFINITY, current[i]);
             for (r, &c) in cost.iter().enumerate() {
-                if c < best.0 {
-                    best = (c, r);
+                let total = f64::from(c) * geo + desc.map_or(0.0, |d| d[(i, r)] / scales.1);
+                if total < best.0 {
+                    best = (total, r);
                 }
             }
             best.1
@@ -168,13 +181,53 @@ fn trilaterate(dx: &Mat<f64>, dy: &[f32], a: usize, current: &[usize]) -> Vec<us
         .collect()
 }
 
+/// The mean |d_X − d_Y| over the pairs of samples of a map given by the anchors of its images.
+fn mean_misfit(dx: &Mat<f64>, dy: &Mat<f64>, anchors: &[usize]) -> f64 {
+    let s = anchors.len();
+    let (mut sum, mut count) = (0.0, 0usize);
+    for i in 0..s {
+        for j in (i + 1)..s {
+            let e = (dx[(i, j)] - dy[(anchors[i], anchors[j])]).abs();
+            if e.is_finite() {
+                sum += e;
+                count += 1;
+            }
+        }
+    }
+    if count > 0 {
+        sum / count as f64
+    } else {
+        0.0
+    }
+}
+
+/// The mean descriptor misfit ‖F(s_i) − G(π(s_i))‖ of a map given by the anchors of its images.
+fn mean_descriptor_misfit(desc: &Mat<f64>, anchors: &[usize]) -> f64 {
+    anchors.iter().enumerate().map(|(i, &a)| desc[(i, a)]).sum::<f64>() / anchors.len().max(1) as f64
+}
+
+/// The descriptor distances ‖F(s_i) − G(a)‖ (s × a) between X's samples and Y's anchors, from
+/// descriptors F (n × q) on X and G (m × q) on Y.
+pub fn descriptor_distances(x: &SampleDistances, y: &SampleDistances, f: MatRef<f64>, g: MatRef<f64>) -> Mat<f64> {
+    let q = f.ncols().min(g.ncols());
+    let (xs, ys) = (&x.samples.vertices, &y.samples.vertices);
+    Mat::from_fn(xs.len(), ys.len(), |i, a| (0..q).map(|c| (f[(xs[i], c)] - g[(ys[a], c)]).powi(2)).sum::<f64>().sqrt())
+}
+
 /// The a × a anchor distances as f32, column-major, ∞ (other components) replaced by ten times
 /// the largest finite distance: such a pair then costs more than any placement within a
 /// component. Single precision is ample for choosing among anchors (7 digits of distances
 /// between 10⁻³ and 10 on a unit-area shape); E itself is summed in f64.
 fn finite_f32(dy: &Mat<f64>) -> Vec<f32> {
-    let big = 10.0 * (0..dy.ncols()).flat_map(|j| dy.col_as_slice(j).iter()).copied().filter(|d| d.is_finite()).fold(0.0, f64::max);
-    (0..dy.ncols()).flat_map(|j| dy.col_as_slice(j).iter().map(move |&d| if d.is_finite() { d } else { big } as f32)).collect()
+    let big = 10.0
+        * (0..dy.ncols())
+            .flat_map(|j| dy.col_as_slice(j).iter())
+            .copied()
+            .filter(|d| d.is_finite())
+            .fold(0.0, f64::max);
+    (0..dy.ncols())
+        .flat_map(|j| dy.col_as_slice(j).iter().map(move |&d| if d.is_finite() { d } else { big } as f32))
+        .collect()
 }
 
 /// Neighbours of every sample for [`orientation`]: its `count` nearest other samples (by the
@@ -251,7 +304,7 @@ fn normalize(a: [f64; 3]) -> [f64; 3] {
 /// What the correction did.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct Correction {
-    /// E after each round, starting with the chosen candidate's.
+    /// The geodesic distortion E after each round that lowered J, starting with the candidate's.
     pub trace: Vec<f64>,
     /// Samples whose corrected image lies farther from the candidate's image than the covering
     /// radius of X's samples (the resolution of the search: closer moves are within the spacing
@@ -261,34 +314,52 @@ pub struct Correction {
     pub radius: f64,
 }
 
-/// Rounds of trilateration from `images` (vertex ids of Y of X's samples) while E decreases, at
-/// most `rounds`. Returns the corrected images (vertex ids of Y: the anchors' vertices) and what
-/// the rounds did.
+/// Coordinate descent from `images` (vertex ids of Y of X's samples) on
+/// J(π) = Σ_i [mean_{j≠i} |d_X(s_i, s_j) − d_Y(π(s_i), π(s_j))| / δ̄ + ‖F(s_i) − G(π(s_i))‖ / σ̄],
+/// δ̄ and σ̄ the mean distance and descriptor misfits of the start: the geodesic distortion of the
+/// module docs and, with `desc` ([`descriptor_distances`]), the data the candidates were fitted
+/// to, each counted in units of its own typical misfit. Between non-isometric shapes (a body
+/// with its arms raised stretches the shoulders) distances alone are fitted better by sliding
+/// whole limbs along themselves than by the true map; the descriptors of a limb's parts (a hand
+/// is not a forearm) forbid that slide, and say nothing against swapping a limb for its mirror
+/// image, which distances do. Rounds while J decreases, at most `rounds`. Returns the corrected
+/// images (vertex ids of Y: the anchors' vertices) and what the rounds did.
 pub fn correct(
     x: &SampleDistances,
     y: &SampleDistances,
     images: &[usize],
+    desc: Option<&Mat<f64>>,
     rounds: usize,
 ) -> Result<(Vec<usize>, Correction)> {
     if images.len() != x.len() || images.iter().any(|&v| v >= y.nearest.len()) {
         return Err(Error::invalid("images", format!("need {} vertex ids of Y < {}", x.len(), y.nearest.len())));
     }
+    if desc.is_some_and(|d| d.nrows() != x.len() || d.ncols() != y.len()) {
+        return Err(Error::invalid("descriptor distances", format!("need {} × {}", x.len(), y.len())));
+    }
     let (dx, dy) = (&x.distances, &y.distances);
     let dy32 = finite_f32(dy);
     let start = anchors_of(y, images);
-    let mut best = (anchored_distortion(dx, dy, &start), start.clone());
-    let mut trace = vec![best.0];
+    let scales = (
+        mean_misfit(dx, dy, &start).max(f64::MIN_POSITIVE),
+        desc.map_or(1.0, |d| mean_descriptor_misfit(d, &start)).max(f64::MIN_POSITIVE),
+    );
+    let energy = |anchors: &[usize]| {
+        mean_misfit(dx, dy, anchors) / scales.0 + desc.map_or(0.0, |d| mean_descriptor_misfit(d, anchors) / scales.1)
+    };
+    let mut best = (energy(&start), start.clone());
+    let mut trace = vec![anchored_distortion(dx, dy, &start)];
     for _ in 0..rounds {
-        let next = trilaterate(dx, &dy32, dy.nrows(), &best.1);
+        let next = trilaterate(dx, &dy32, dy.nrows(), &best.1, desc, scales);
         if next == best.1 {
             break;
         }
-        let e = anchored_distortion(dx, dy, &next);
-        trace.push(e);
-        if !(e < best.0) {
+        let j = energy(&next);
+        if !(j < best.0) {
             break;
         }
-        best = (e, next);
+        trace.push(anchored_distortion(dx, dy, &next));
+        best = (j, next);
     }
     let corrected: Vec<usize> = best.1.iter().map(|&a| y.samples.vertices[a]).collect();
     let moved = images.iter().zip(&corrected).filter(|(&b, &a)| has_moved(x, y, b, a)).count();
@@ -331,13 +402,13 @@ mod tests {
         }
         let e = distortion(&side, &side, &wrong);
         assert!(e > 0.05, "distortion of the wrong map {e}");
-        let (fixed, report) = correct(&side, &side, &wrong, 5).unwrap();
+        let (fixed, report) = correct(&side, &side, &wrong, None, 5).unwrap();
         assert_eq!(fixed, truth, "trace {:?}", report.trace);
         assert_eq!(report.moved, 10);
         assert!(report.trace.len() >= 2 && report.trace.last().unwrap() < &1e-12);
         assert!((0..10).all(|i| has_moved(&side, &side, wrong[i], fixed[i])));
         assert!(!has_moved(&side, &side, wrong[20], fixed[20]));
         assert!(SampleDistances::new(&x, &mass, &g, 2).is_err());
-        assert!(correct(&side, &side, &wrong[1..], 1).is_err());
+        assert!(correct(&side, &side, &wrong[1..], None, 1).is_err());
     }
 }
