@@ -90,7 +90,9 @@ impl PreparedShape {
     /// not fit the shape (cotangent without faces, a point-cloud Laplacian of non-3-D points),
     /// and those of the Laplacian and the eigensolver.
     pub fn new(shape: Shape, choice: LaplacianChoice, k: usize, cache: Option<&BasisCache>) -> Result<Self> {
+        crate::progress::stage("laplacian")?;
         let (laplacian, surface) = build_laplacian(&shape, choice)?;
+        crate::progress::stage("eigenbasis")?;
         let (basis, _) = spectral::eigen_basis_cached(&laplacian, &SpectralOptions::new(k), cache, None)?;
         let basis = if basis.k() > k { basis.truncate(k)? } else { basis };
         Ok(Self::from_parts(shape, laplacian, basis, surface))
