@@ -22,7 +22,11 @@ between two shapes do not depend on their units).
 
 Every computation releases the GIL and runs on its own rayon pool of
 ``set_num_threads(n)`` / ``$FUNCORR_NUM_THREADS`` threads (default: every core), so Python
-threads and Ray workers run in parallel without oversubscribing the machine.
+threads and Ray workers run in parallel without oversubscribing the machine. Ctrl-C stops any
+call within a fraction of a second (KeyboardInterrupt; nothing half-written is left, and the
+process goes on normally). The long calls (:func:`match`, :func:`prepare`,
+:func:`geodesic_all_pairs`, :func:`funcorr.batch.match_pairs`) show a progress bar when run in a
+terminal or a notebook (``progress=``; ``$FUNCORR_PROGRESS=0`` for none).
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ from typing import TYPE_CHECKING as _TYPE_CHECKING
 import numpy as _np
 
 from . import _funcorr
+from ._progress import reporting as _reporting
 from ._funcorr import PreparedShape, get_num_threads
 
 if _TYPE_CHECKING:
@@ -97,13 +102,6 @@ def set_num_threads(n: Optional[int] = None) -> None:
     global _threads_setting
     _funcorr.set_num_threads(n)
     _threads_setting = n
-
-
-def _no_progress(progress) -> None:
-    """``progress=`` is reserved for progress bars and Ctrl-C (issue 32, item 2): only None /
-    False (no progress output, today's behaviour) are accepted until then."""
-    if progress not in (None, False):
-        raise ValueError("progress: progress reporting is not available yet; pass None or False")
 
 
 def read_mesh(path) -> Tuple[_np.ndarray, _np.ndarray]:
@@ -190,15 +188,16 @@ def prepare(shape: ShapeLike, k: int = 200, cache_dir=None, progress=None, **lap
     obtuse or sliver triangles — the cotangent Laplacian itself on Delaunay meshes),
     ``cloud_neighbours=30``, ``knn=10``, ``vertex_weights="identity"|"degree"``, ``sigma=None``.
     ``cache_dir``: a directory (or True for ``$FUNCORR_CACHE_DIR`` / ``~/.cache/funcorr``) where
-    eigenbases are cached, keyed by the Laplacian; None (default): no cache. ``progress``:
-    reserved (None or False).
+    eigenbases are cached, keyed by the Laplacian; None (default): no cache. ``progress``: None
+    (a bar in a terminal or a notebook), True, False, or a callable ``(stage, done, total)``
+    (module ``funcorr._progress``). Ctrl-C stops the call (KeyboardInterrupt).
 
     The result has ``.eigenvalues`` (k,), ``.eigenvectors`` Φ (n, k), ``.mass`` A (n,) (in the
     shape's units: Φᵀ diag(A) Φ = I, Σ A = ``.area``), ``.vertices``, ``.faces``, ``.n``, ``.k``;
     it pickles (for Ray's object store).
     """
-    _no_progress(progress)
-    return _funcorr.prepare(shape, k, cache_dir, **laplacian)
+    with _reporting(progress, "funcorr.prepare") as report:
+        return _funcorr.prepare(shape, k, cache_dir, report, **laplacian)
 
 
 def eigenbasis(V, F=None, k: int = 100, **options) -> Tuple[_np.ndarray, _np.ndarray, _np.ndarray]:
@@ -466,15 +465,18 @@ def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str
     :func:`prepare`; ``seg_function``, ``threshold``, ``hks_time``; ``cache_dir``. An unknown
     keyword raises TypeError; a bad value ValueError naming it.
 
-    ``progress``: reserved for progress output and Ctrl-C (None or False today).
+    ``progress``: None (default: a bar on stderr in a terminal, a notebook-friendly one in
+    Jupyter, nothing when stderr is a file or a pipe; ``$FUNCORR_PROGRESS=0`` turns it off),
+    True, False, or a callable ``(stage, done, total)`` (module ``funcorr._progress``). Ctrl-C
+    stops the call within a fraction of a second with KeyboardInterrupt.
 
     Returns a :class:`MatchResult`; ``result.map_xy[i]`` is the vertex of Y matched to vertex i
     of X.
     """
-    _no_progress(progress)
     opts = dict(options)
     opts["method"] = method
-    r = _funcorr.match_shapes(X, Y, data, opts)
+    with _reporting(progress, "funcorr.match") as report:
+        r = _funcorr.match_shapes(X, Y, data, opts, report)
     return MatchResult(
         map_xy=r["map_xy"],
         map_yx=r["map_yx"],
@@ -565,13 +567,14 @@ def geodesic_pairs(mesh: ShapeLike, pairs, method: str = "exact") -> _np.ndarray
 def geodesic_all_pairs(mesh: ShapeLike, out=None, method: str = "exact", chunk: int = 64, progress=None) -> _np.ndarray:
     """All-pairs geodesic distances written into ``out`` (n × n float64, writable, e.g.
     ``np.memmap(path, dtype=np.float64, mode="w+", shape=(n, n))``; None: a new array), row i the
-    distances from vertex i, ``chunk`` sources at a time. ``progress``: reserved (None or False).
-    Returns ``out``."""
-    _no_progress(progress)
+    distances from vertex i, ``chunk`` sources at a time. ``progress``: as :func:`match` (the
+    sources done). Ctrl-C stops the call between two chunks' sources (KeyboardInterrupt; the
+    rows finished so far are in ``out``). Returns ``out``."""
     if out is None:
         n = mesh.n if isinstance(mesh, PreparedShape) else _n_vertices(mesh)
         out = _np.empty((n, n), dtype=_np.float64)
-    _funcorr.geodesic_all_pairs(mesh, out, method, chunk)
+    with _reporting(progress, "funcorr.geodesic_all_pairs") as report:
+        _funcorr.geodesic_all_pairs(mesh, out, method, chunk, report)
     return out
 
 

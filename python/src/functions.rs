@@ -340,16 +340,18 @@ fn geodesic_pairs<'py>(
     Ok(arrays::vec_out(py, d))
 }
 
-/// `geodesic_all_pairs(mesh, out, method="exact", chunk=64)`: every distance into `out`
-/// (n × n float64, writable, any memory order; e.g. an np.memmap), `chunk` sources at a time.
+/// `geodesic_all_pairs(mesh, out, method="exact", chunk=64, progress=None)`: every distance into
+/// `out` (n × n float64, writable, any memory order; e.g. an np.memmap), `chunk` sources at a
+/// time; `progress` a callable `(stage, done, total)` (sources done of n) or None.
 #[pyfunction]
-#[pyo3(signature = (mesh, out, method="exact", chunk=64))]
+#[pyo3(signature = (mesh, out, method="exact", chunk=64, progress=None))]
 fn geodesic_all_pairs<'py>(
     py: Python<'py>,
     mesh: &Bound<'py, PyAny>,
     out: &Bound<'py, PyAny>,
     method: &str,
     chunk: usize,
+    progress: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<()> {
     let m: Arc<TriMesh> = mesh_arg(mesh, "mesh")?;
     let n = m.n_vertices();
@@ -363,10 +365,13 @@ fn geodesic_all_pairs<'py>(
         return Err(value_error("chunk", "must be at least 1"));
     }
     let how = geodesic_method(method)?;
+    // One session for the whole call: its progress is the sources done of n.
+    let session = crate::Session::new(progress)?;
     let solver = {
         let m = m.clone();
         // Built once (the exact solver's preprocessing, the heat method's factorization).
-        compute(py, move || {
+        session.run(py, move || {
+            funcorr::progress::stage("geodesics")?;
             let s: Box<dyn Distances + Send + Sync> = match how {
                 GeodesicMethod::Exact => Box::new(funcorr::geodesic::ExactGeodesics::new(&m)?),
                 GeodesicMethod::Heat => Box::new(funcorr::geodesic::HeatGeodesics::new(&m)?),
@@ -381,7 +386,10 @@ fn geodesic_all_pairs<'py>(
         let sources: Vec<usize> = (start..(start + chunk).min(n)).collect();
         let s = solver.clone();
         let src = sources.clone();
-        let d = compute(py, move || s.distances_from(&src))?;
+        let d = session.run(py, move || {
+            funcorr::progress::step(start, n)?;
+            s.distances_from(&src)
+        })?;
         // Column j of d holds the distances from source j: row `source` of the output (and,
         // the distances being symmetric up to the solver's accuracy, not mirrored).
         for (j, &src) in sources.iter().enumerate() {
@@ -392,6 +400,7 @@ fn geodesic_all_pairs<'py>(
         }
         py.check_signals()?;
     }
+    session.report_now(py, &funcorr::progress::Status { stage: "geodesics".into(), done: n, total: n });
     Ok(())
 }
 

@@ -62,15 +62,17 @@ fn data_arg(obj: &Bound<'_, PyAny>) -> PyResult<Data> {
     ))
 }
 
-/// `match(X, Y, data, options)`: the whole pipeline of `funcorr match`. Returns a dict.
+/// `match(X, Y, data, options, progress)`: the whole pipeline of `funcorr match`. Returns a dict.
+/// `progress`: a callable `(stage, done, total)` or None.
 #[pyfunction]
-#[pyo3(signature = (x, y, data, options=None))]
+#[pyo3(signature = (x, y, data, options=None, progress=None))]
 fn match_shapes<'py>(
     py: Python<'py>,
     x: &Bound<'py, PyAny>,
     y: &Bound<'py, PyAny>,
     data: &Bound<'py, PyAny>,
     options: Option<&Bound<'py, PyDict>>,
+    progress: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     // Everything is checked before any work: data, options, shapes.
     let data = data_arg(data)?;
@@ -114,13 +116,15 @@ fn match_shapes<'py>(
         }
     }
     let opts_run = opts.clone();
-    let (px, py_, f, g, r) = compute(py, move || {
+    let (px, py_, f, g, r) = crate::compute_reporting(py, progress, move || {
         let prep = |s: Side| -> funcorr::Result<Arc<PreparedShape>> {
             match s {
                 Side::Ready(p) => Ok(p),
                 Side::Raw(shape) => {
                     // As `funcorr match`: the basis as computed (or cached), not truncated.
+                    funcorr::progress::stage("laplacian")?;
                     let (lap, surface) = funcorr::prepared::build_laplacian(&shape, choice)?;
+                    funcorr::progress::stage("eigenbasis")?;
                     let (basis, _) = funcorr::spectral::eigen_basis_cached(
                         &lap,
                         &funcorr::spectral::SpectralOptions::new(basis_k),
@@ -133,6 +137,7 @@ fn match_shapes<'py>(
         };
         let (px, py_) = rayon::join(|| prep(sx), || prep(sy));
         let (px, py_) = (px?, py_?);
+        funcorr::progress::stage("data")?;
         let (f, g) = match data {
             Data::Spec(spec) => spec.functions(px.parts(), py_.parts(), &seg)?,
             Data::Given(f, g) => (f, g),

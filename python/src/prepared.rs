@@ -277,14 +277,16 @@ pub(crate) fn check_k(shape: &Shape, k: usize, name: &str, what: &str) -> PyResu
     Ok(())
 }
 
-/// `prepare(shape, k, cache_dir, **laplacian options)`.
+/// `prepare(shape, k, cache_dir, progress, **laplacian options)`; `progress` a callable
+/// `(stage, done, total)` or None.
 #[pyfunction]
-#[pyo3(signature = (shape, k=200, cache_dir=None, **kwargs))]
+#[pyo3(signature = (shape, k=200, cache_dir=None, progress=None, **kwargs))]
 fn prepare(
     py: Python<'_>,
     shape: &Bound<'_, PyAny>,
     k: usize,
     cache_dir: Option<&Bound<'_, PyAny>>,
+    progress: Option<&Bound<'_, PyAny>>,
     kwargs: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<PyPrepared> {
     let mut opts = options::Opts::new(kwargs)?;
@@ -293,7 +295,7 @@ fn prepare(
     let cache = cache_arg(cache_dir)?;
     let s = arrays::shape(shape, "shape")?;
     check_k(&s, k, "k", "k")?;
-    let p = compute(py, move || PreparedShape::new(s, choice, k, cache.as_ref()))?;
+    let p = crate::compute_reporting(py, progress, move || PreparedShape::new(s, choice, k, cache.as_ref()))?;
     Ok(PyPrepared::new(Arc::new(p), choice))
 }
 
