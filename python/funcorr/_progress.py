@@ -119,7 +119,7 @@ class Bar:
     def _draw(self, stage: str, done: int, total: int, now: float) -> None:
         desc = f"{self.what}: {stage}" if stage else self.what
         if self.tqdm is None and not self.line:
-            self.tqdm = _new_tqdm()
+            self.tqdm = _new_tqdm(desc)
         if self.tqdm is not None:
             bar = self.tqdm
             if total > 0:
@@ -165,7 +165,7 @@ class Bar:
         self.close()
 
 
-def _new_tqdm():
+def _new_tqdm(desc: str):
     """A tqdm.auto bar on stderr that disappears when closed, or None without tqdm."""
     try:
         import warnings
@@ -178,7 +178,7 @@ def _new_tqdm():
     except Exception:
         return None
     try:
-        return tqdm(total=None, file=_sys.stderr, leave=False, dynamic_ncols=True, bar_format="{desc} [{elapsed}]")
+        return tqdm(total=None, desc=desc, file=_sys.stderr, leave=False, dynamic_ncols=True, bar_format="{desc} [{elapsed}]")
     except Exception:
         return None
 
