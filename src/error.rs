@@ -45,6 +45,13 @@ pub enum Error {
         /// What happened.
         msg: String,
     },
+    /// The computation was cancelled ([`crate::progress`]: Ctrl-C in the CLI or in Python, or
+    /// a [`crate::progress::Monitor`] cancelled by its owner) before it finished.
+    #[error("cancelled{}", if stage.is_empty() { String::new() } else { format!(" during {}", escape(stage)) })]
+    Cancelled {
+        /// The stage the computation was in (empty when it had not named one).
+        stage: String,
+    },
 }
 
 /// Result alias with [`Error`].

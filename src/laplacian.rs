@@ -30,6 +30,9 @@ pub enum LaplacianKind {
     /// A point cloud's union of local Delaunay fans (Sharp & Crane 2020), cotangent weights
     /// and mass divided by 3.
     PointCloud,
+    /// Cotangent weights and barycentric mass of the intrinsic Delaunay triangulation
+    /// (`geodesic::intrinsic_delaunay_laplacian`).
+    IntrinsicDelaunay,
 }
 
 /// Vertex weights of a graph Laplacian (paper §2): A = I or A = D.

@@ -37,6 +37,7 @@ pub mod optim;
 pub mod pointwise;
 pub mod prepared;
 pub mod primitives;
+pub mod progress;
 pub mod refine;
 mod rng;
 pub mod shape;

@@ -248,6 +248,7 @@ pub fn orientation_operators(
     (0..f.ncols())
         .into_par_iter()
         .map(|p| {
+            crate::progress::check()?;
             let col: Vec<f64> = (0..grads.n()).map(|i| f[(i, p)]).collect();
             let mut v = grads.rotated_gradient(&col)?;
             if unit_gradients {

@@ -179,34 +179,47 @@ pub fn nearest_neighbors_near_rows(
     Ok(map)
 }
 
-/// Point-to-point map X → Y of a functional map C (k × k, coefficients on X → coefficients on Y)
-/// between the bases Φ (n × k') and Ψ (m × k'), k ≤ k', as in the paper (§2): vertex i of X goes
-/// to the vertex j of Y whose row of Ψ_k C is nearest to row i of Φ_k. Returns `map_xy`
-/// (length n, vertices of Y).
+/// Point-to-point map X → Y of a functional map C (k_Y × k_X, coefficients on X → coefficients
+/// on Y; square k × k in the paper) between the bases Φ (n × k') and Ψ (m × k'') with k_X ≤ k',
+/// k_Y ≤ k'', as in the paper (§2): vertex i of X goes to the vertex j of Y whose row of
+/// Ψ_{k_Y} C is nearest to row i of Φ_{k_X}. Returns `map_xy` (length n, vertices of Y).
 pub fn map_from_fmap(phi: MatRef<f64>, psi: MatRef<f64>, c: MatRef<f64>) -> Result<Vec<usize>> {
-    let k = check_fmap(phi, psi, c)?;
-    let mut psi_c = Mat::<f64>::zeros(psi.nrows(), k);
-    matmul(psi_c.as_mut(), Accum::Replace, psi.subcols(0, k), c, 1.0, Par::Seq);
-    nearest_neighbors(psi_c.as_ref(), phi.subcols(0, k))
+    let (kx, ky) = check_fmap(phi, psi, c)?;
+    let mut psi_c = Mat::<f64>::zeros(psi.nrows(), kx);
+    matmul(psi_c.as_mut(), Accum::Replace, psi.subcols(0, ky), c, 1.0, Par::Seq);
+    nearest_neighbors(psi_c.as_ref(), phi.subcols(0, kx))
 }
 
-/// Point-to-point map Y → X induced by a functional map C (k × k, X → Y): vertex j of Y goes to
-/// the vertex of X whose row of Φ_k Cᵀ is nearest to row j of Ψ_k (the pull-back direction, as
-/// used by ZoomOut). Returns `map_yx` (length m, vertices of X).
+/// Point-to-point map Y → X induced by a functional map C (k_Y × k_X, X → Y): vertex j of Y
+/// goes to the vertex of X whose row of Φ_{k_X} Cᵀ is nearest to row j of Ψ_{k_Y} (the pull-back
+/// direction, as used by ZoomOut; pyFM's `FM_to_p2p`). Returns `map_yx` (length m, vertices of
+/// X).
 pub fn map_yx_from_fmap(phi: MatRef<f64>, psi: MatRef<f64>, c: MatRef<f64>) -> Result<Vec<usize>> {
-    let k = check_fmap(phi, psi, c)?;
-    let mut phi_ct = Mat::<f64>::zeros(phi.nrows(), k);
-    matmul(phi_ct.as_mut(), Accum::Replace, phi.subcols(0, k), c.transpose(), 1.0, Par::Seq);
-    nearest_neighbors(phi_ct.as_ref(), psi.subcols(0, k))
+    let (kx, ky) = check_fmap(phi, psi, c)?;
+    let mut phi_ct = Mat::<f64>::zeros(phi.nrows(), ky);
+    matmul(phi_ct.as_mut(), Accum::Replace, phi.subcols(0, kx), c.transpose(), 1.0, Par::Seq);
+    nearest_neighbors(phi_ct.as_ref(), psi.subcols(0, ky))
 }
 
-fn check_fmap(phi: MatRef<f64>, psi: MatRef<f64>, c: MatRef<f64>) -> Result<usize> {
-    let k = c.nrows();
-    if c.ncols() != k || k == 0 || k > phi.ncols() || k > psi.ncols() {
+/// Point-to-point map Y → X by the adjoint of a functional map C (k_Y × k_X, X → Y): vertex j
+/// of Y goes to the vertex of X whose row of Φ_{k_X} is nearest to row j of Ψ_{k_Y} C (the
+/// deltas of Y carried to X's coefficients by Cᵀ; pyFM's `FM_to_p2p(use_adj=True)`). Returns
+/// `map_yx` (length m, vertices of X).
+pub fn map_yx_from_fmap_adjoint(phi: MatRef<f64>, psi: MatRef<f64>, c: MatRef<f64>) -> Result<Vec<usize>> {
+    let (kx, ky) = check_fmap(phi, psi, c)?;
+    let mut psi_c = Mat::<f64>::zeros(psi.nrows(), kx);
+    matmul(psi_c.as_mut(), Accum::Replace, psi.subcols(0, ky), c, 1.0, Par::Seq);
+    nearest_neighbors(phi.subcols(0, kx), psi_c.as_ref())
+}
+
+/// (k_X, k_Y) of a functional map C (k_Y × k_X) that fits the bases.
+fn check_fmap(phi: MatRef<f64>, psi: MatRef<f64>, c: MatRef<f64>) -> Result<(usize, usize)> {
+    let (ky, kx) = (c.nrows(), c.ncols());
+    if kx == 0 || ky == 0 || kx > phi.ncols() || ky > psi.ncols() {
         return Err(Error::invalid(
             "C",
             format!(
-                "a {}×{} map does not fit bases with {} and {} columns",
+                "a {}×{} map (k_Y × k_X) does not fit bases with {} (X) and {} (Y) columns",
                 c.nrows(),
                 c.ncols(),
                 phi.ncols(),
@@ -214,7 +227,7 @@ fn check_fmap(phi: MatRef<f64>, psi: MatRef<f64>, c: MatRef<f64>) -> Result<usiz
             ),
         ));
     }
-    Ok(k)
+    Ok((kx, ky))
 }
 
 /// The functional map C (k × k, X → Y) of the pull-back by a point-to-point map Y → X
@@ -227,6 +240,19 @@ pub fn fmap_from_map_yx(
     map_yx: &[usize],
     k: usize,
 ) -> Result<Mat<f64>> {
+    fmap_from_map_yx_sizes(phi, psi, mass_y, map_yx, k, k)
+}
+
+/// [`fmap_from_map_yx`] with k_X basis functions on X and k_Y on Y: C = Ψ_{k_Y}ᵀ A_Y
+/// Φ_{k_X}(map_yx), k_Y × k_X (pyFM's `p2p_to_FM`).
+pub fn fmap_from_map_yx_sizes(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    mass_y: &[f64],
+    map_yx: &[usize],
+    kx: usize,
+    ky: usize,
+) -> Result<Mat<f64>> {
     let (n, m) = (phi.nrows(), psi.nrows());
     if map_yx.len() != m || mass_y.len() != m {
         return Err(Error::invalid(
@@ -234,30 +260,31 @@ pub fn fmap_from_map_yx(
             format!("{} map entries and {} weights for {m} vertices of Y", map_yx.len(), mass_y.len()),
         ));
     }
-    if k == 0 || k > phi.ncols() || k > psi.ncols() {
-        return Err(Error::invalid("k", format!("need 1 ≤ k ≤ {} and {}, got {k}", phi.ncols(), psi.ncols())));
+    if kx == 0 || ky == 0 || kx > phi.ncols() || ky > psi.ncols() {
+        let got = if kx == ky { format!("{kx}") } else { format!("({kx}, {ky})") };
+        return Err(Error::invalid("k", format!("need 1 ≤ k ≤ {} and {}, got {got}", phi.ncols(), psi.ncols())));
     }
     if let Some(&bad) = map_yx.iter().find(|&&i| i >= n) {
         return Err(Error::invalid("map", format!("vertex {bad} of X does not exist (n = {n})")));
     }
-    let a_psi = Mat::from_fn(m, k, |j, i| mass_y[j] * psi[(j, i)]);
-    let phi_map = Mat::from_fn(m, k, |j, i| phi[(map_yx[j], i)]);
-    let mut c = Mat::<f64>::zeros(k, k);
+    let a_psi = Mat::from_fn(m, ky, |j, i| mass_y[j] * psi[(j, i)]);
+    let phi_map = Mat::from_fn(m, kx, |j, i| phi[(map_yx[j], i)]);
+    let mut c = Mat::<f64>::zeros(ky, kx);
     matmul(c.as_mut(), Accum::Replace, a_psi.transpose(), phi_map.as_ref(), 1.0, Par::Seq);
     Ok(c)
 }
 
-/// The soft map of vertex i of X (paper Figures 5, 6): the column T δ_i = Ψ_k C Φ_k(i)ᵀ (length
-/// m) of the correspondence kernel of a functional map C (k × k, between mass-orthonormal
-/// bases), a function on Y that is ideally concentrated at the image of x_i (density, in units
-/// of 1 / area of Y).
+/// The soft map of vertex i of X (paper Figures 5, 6): the column T δ_i = Ψ_{k_Y} C Φ_{k_X}(i)ᵀ
+/// (length m) of the correspondence kernel of a functional map C (k_Y × k_X, between
+/// mass-orthonormal bases), a function on Y that is ideally concentrated at the image of x_i
+/// (density, in units of 1 / area of Y).
 pub fn soft_map_column(phi: MatRef<f64>, psi: MatRef<f64>, c: MatRef<f64>, i: usize) -> Result<Vec<f64>> {
-    let k = check_fmap(phi, psi, c)?;
+    let (kx, ky) = check_fmap(phi, psi, c)?;
     if i >= phi.nrows() {
         return Err(Error::invalid("vertex", format!("vertex {i} of X does not exist (n = {})", phi.nrows())));
     }
-    let coeff: Vec<f64> = (0..k).map(|a| (0..k).map(|b| c[(a, b)] * phi[(i, b)]).sum()).collect();
-    Ok((0..psi.nrows()).map(|j| (0..k).map(|a| psi[(j, a)] * coeff[a]).sum()).collect())
+    let coeff: Vec<f64> = (0..ky).map(|a| (0..kx).map(|b| c[(a, b)] * phi[(i, b)]).sum()).collect();
+    Ok((0..psi.nrows()).map(|j| (0..ky).map(|a| psi[(j, a)] * coeff[a]).sum()).collect())
 }
 
 /// Options of [`icp`].
@@ -276,18 +303,25 @@ impl Default for IcpOptions {
 /// The ICP-like refinement of Ovsjanikov et al. 2012 (paper §2): alternate the point-wise map
 /// (nearest rows of Ψ_k C for the rows of Φ_k) and the orthonormal C minimizing
 /// ‖Φ_k − Ψ_k(map) C‖ (orthogonal Procrustes: C = U Vᵀ from the SVD of Ψ_k(map)ᵀ Φ_k), until
-/// the map stops changing. Returns the refined C (k × k) and `map_xy` (length n).
+/// the map stops changing. Returns the refined C (k × k) and `map_xy` (length n). A rectangular
+/// C (k_Y × k_X) is refined the same way, C = U Vᵀ from the thin SVD (orthonormal columns or
+/// rows).
 pub fn icp(phi: MatRef<f64>, psi: MatRef<f64>, c0: MatRef<f64>, opts: &IcpOptions) -> Result<(Mat<f64>, Vec<usize>)> {
-    let k = check_fmap(phi, psi, c0)?;
-    let (phi, psi) = (phi.subcols(0, k), psi.subcols(0, k));
+    let (kx, ky) = check_fmap(phi, psi, c0)?;
+    let (phi, psi) = (phi.subcols(0, kx), psi.subcols(0, ky));
     let mut c = c0.to_owned();
     let mut map = map_from_fmap(phi, psi, c.as_ref())?;
     for _ in 0..opts.max_iterations {
-        let mut m = Mat::<f64>::zeros(k, k);
-        let psi_map = Mat::from_fn(phi.nrows(), k, |i, j| psi[(map[i], j)]);
+        let mut m = Mat::<f64>::zeros(ky, kx);
+        let psi_map = Mat::from_fn(phi.nrows(), ky, |i, j| psi[(map[i], j)]);
         matmul(m.as_mut(), Accum::Replace, psi_map.transpose(), phi, 1.0, Par::Seq);
-        let svd = m.svd().map_err(|e| Error::numerical("icp", format!("SVD failed: {e:?}")))?;
-        matmul(c.as_mut(), Accum::Replace, svd.U(), svd.V().transpose(), 1.0, Par::Seq);
+        if kx == ky {
+            let svd = m.svd().map_err(|e| Error::numerical("icp", format!("SVD failed: {e:?}")))?;
+            matmul(c.as_mut(), Accum::Replace, svd.U(), svd.V().transpose(), 1.0, Par::Seq);
+        } else {
+            let svd = m.thin_svd().map_err(|e| Error::numerical("icp", format!("SVD failed: {e:?}")))?;
+            matmul(c.as_mut(), Accum::Replace, svd.U(), svd.V().transpose(), 1.0, Par::Seq);
+        }
         let next = map_from_fmap(phi, psi, c.as_ref())?;
         let changed = next != map;
         map = next;
@@ -318,7 +352,10 @@ pub fn zoomout(
     c0: MatRef<f64>,
     opts: &ZoomOutOptions,
 ) -> Result<(Mat<f64>, Vec<usize>)> {
-    let k0 = check_fmap(phi, psi, c0)?;
+    let (k0, ky0) = check_fmap(phi, psi, c0)?;
+    if ky0 != k0 {
+        return Err(Error::invalid("C", format!("ZoomOut starts from a square map, got {ky0} × {k0}")));
+    }
     let kf = opts.k_final;
     if kf < k0 || kf > phi.ncols() || kf > psi.ncols() || opts.step == 0 {
         return Err(Error::invalid(
@@ -445,6 +482,20 @@ mod tests {
         }
         let back = map_yx_from_fmap(phi.as_ref(), psi.as_ref(), c.as_ref()).unwrap();
         assert_eq!(back, perm);
+        assert_eq!(map_yx_from_fmap_adjoint(phi.as_ref(), psi.as_ref(), c.as_ref()).unwrap(), perm);
+        // Rectangular maps (k_Y × k_X): Ψ has 3 more columns than C reads; C = [I 0]ᵀ-like
+        // blocks keep the first k_X coordinates, so the maps are those of the square case.
+        let psi_wide = Mat::from_fn(n, k + 3, |i, j| if j < k { psi[(i, j)] } else { rng.sample() });
+        let tall = Mat::from_fn(k + 3, k, |i, j| if i == j { 1.0 } else { 0.0 });
+        let map_t = map_from_fmap(phi.as_ref(), psi_wide.as_ref(), tall.as_ref()).unwrap();
+        assert_eq!(map_t, map);
+        let adj = map_yx_from_fmap_adjoint(phi.as_ref(), psi_wide.as_ref(), tall.as_ref()).unwrap();
+        assert_eq!(adj, perm);
+        let c_back = fmap_from_map_yx_sizes(phi.as_ref(), psi_wide.as_ref(), &vec![1.0; n], &back, k, k + 3).unwrap();
+        assert_eq!((c_back.nrows(), c_back.ncols()), (k + 3, k));
+        let (c_icp, map_icp) = icp(phi.as_ref(), psi_wide.as_ref(), tall.as_ref(), &IcpOptions::default()).unwrap();
+        assert_eq!((c_icp.nrows(), c_icp.ncols()), (k + 3, k));
+        assert_eq!(map_icp, map);
     }
 
     /// A random k × k orthonormal matrix (Q of a QR factorization).

@@ -34,6 +34,10 @@ pub enum LaplacianChoice {
     Auto,
     /// Cotangent weights and barycentric mass (meshes).
     Cotangent,
+    /// The cotangent Laplacian of the mesh's intrinsic Delaunay triangulation
+    /// ([`crate::geodesic::intrinsic_delaunay_laplacian`]): non-negative weights on meshes with
+    /// obtuse or sliver triangles, the cotangent Laplacian itself on Delaunay meshes (meshes).
+    Intrinsic,
     /// The point-cloud Laplacian of local Delaunay fans over K neighbours (3-D points; a mesh is
     /// used as its vertices).
     Cloud {
@@ -86,7 +90,9 @@ impl PreparedShape {
     /// not fit the shape (cotangent without faces, a point-cloud Laplacian of non-3-D points),
     /// and those of the Laplacian and the eigensolver.
     pub fn new(shape: Shape, choice: LaplacianChoice, k: usize, cache: Option<&BasisCache>) -> Result<Self> {
+        crate::progress::stage("laplacian")?;
         let (laplacian, surface) = build_laplacian(&shape, choice)?;
+        crate::progress::stage("eigenbasis")?;
         let (basis, _) = spectral::eigen_basis_cached(&laplacian, &SpectralOptions::new(k), cache, None)?;
         let basis = if basis.k() > k { basis.truncate(k)? } else { basis };
         Ok(Self::from_parts(shape, laplacian, basis, surface))
@@ -214,9 +220,16 @@ pub fn build_laplacian(shape: &Shape, choice: LaplacianChoice) -> Result<(Laplac
         (LaplacianChoice::Auto | LaplacianChoice::Cotangent, Shape::Mesh(m)) => {
             Ok((laplacian::cotangent(m)?, Some(Surface::Mesh)))
         }
+        (LaplacianChoice::Intrinsic, Shape::Mesh(m)) => {
+            Ok((crate::geodesic::intrinsic_delaunay_laplacian(m)?, Some(Surface::Mesh)))
+        }
         (LaplacianChoice::Cotangent, Shape::Points(_)) => Err(Error::invalid(
             "laplacian",
             "cotan needs a triangle mesh; this shape has no faces (use the point-cloud Laplacian)",
+        )),
+        (LaplacianChoice::Intrinsic, Shape::Points(_)) => Err(Error::invalid(
+            "laplacian",
+            "intrinsic needs a triangle mesh; this shape has no faces (use the point-cloud Laplacian)",
         )),
         (LaplacianChoice::Auto, Shape::Points(p)) if p.dim() != 3 => {
             Ok((laplacian::knn_graph(p, &KnnOptions::default())?, None))

@@ -273,6 +273,7 @@ const LANES: usize = 8;
 /// result is the exact f64 argmin up to the rounding of that last f64 sum (a near-tie below
 /// 1e-15 relative may resolve differently from a blocked f64 GEMM).
 fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Result<Vec<usize>> {
+    crate::progress::check()?;
     let (m, d) = (reference.nrows(), reference.ncols());
     if query.ncols() != d {
         return Err(Error::invalid(
@@ -303,6 +304,9 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
     let blocks: Vec<Vec<usize>> = starts
         .par_iter()
         .map(|&r0| {
+            if crate::progress::cancelled() {
+                return Vec::new(); // discarded: the check below fails
+            }
             let len = QUERY_BLOCK.min(n - r0);
             let q = query.subrows(r0, len);
             let q32 = Mat::<f32>::from_fn(len, d, |i, j| q[(i, j)] as f32);
@@ -385,6 +389,7 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
                 .collect()
         })
         .collect();
+    crate::progress::check()?;
     Ok(blocks.into_iter().flatten().collect())
 }
 

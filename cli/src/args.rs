@@ -11,6 +11,10 @@ use funcorr::spectral::BasisCache;
 pub(crate) enum LaplacianChoice {
     /// Cotangent weights with barycentric lumped mass (paper eq. (2)); meshes only. Default for meshes.
     Cotan,
+    /// The cotangent Laplacian of the mesh's intrinsic Delaunay triangulation (the same surface,
+    /// re-triangulated by intrinsic edge flips): non-negative weights on meshes with obtuse or
+    /// sliver triangles, the cotangent Laplacian itself on Delaunay meshes; meshes only.
+    Intrinsic,
     /// The point-cloud Laplacian of local Delaunay triangulations of --cloud-neighbours nearest
     /// neighbours (Sharp & Crane 2020): spectrum and mass agree with the cotangent Laplacian of
     /// the sampled surface. 3-D points (a mesh is used as its vertices). Default for 3-D point sets.

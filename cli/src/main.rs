@@ -106,6 +106,11 @@ mod view;
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // Ctrl-C cancels the computation (funcorr::progress): it stops at its next check, outputs
+    // staged so far are removed and nothing is published; a second Ctrl-C kills the process.
+    if let Err(e) = funcorr::progress::interrupt_on_sigint() {
+        eprintln!("funcorr: warning: Ctrl-C will kill the process without cleaning up: {e}");
+    }
     let result = match cli.command {
         Command::Info { shape, json } => info::info(&shape, json),
         Command::Spectrum(args) => spectrum::spectrum(&args),
@@ -120,6 +125,13 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(Error::Cancelled { stage }) => {
+            let during =
+                if stage.is_empty() { String::new() } else { format!(" during {}", funcorr::error::escape(&stage)) };
+            eprintln!("funcorr: interrupted (Ctrl-C){during}: stopped, no output written");
+            // 128 + SIGINT, as a shell reports a process ended by Ctrl-C.
+            ExitCode::from(130)
+        }
         Err(e) => {
             let e = as_flag(e);
             eprintln!("funcorr: error: {e}");

@@ -119,6 +119,7 @@ pub(crate) fn laplacian_choice(
     if !ignored.is_empty() {
         let (what, applies) = match effective {
             LaplacianChoice::Cotan => ("the cotangent Laplacian of its triangles", ""),
+            LaplacianChoice::Intrinsic => ("the intrinsic Delaunay Laplacian of its triangles", ""),
             LaplacianChoice::Cloud => {
                 ("the point-cloud Laplacian", "; --knn, --vertex-weights and --sigma apply to --laplacian knn")
             }
@@ -148,6 +149,7 @@ pub(crate) fn laplacian_choice(
     Ok(match (effective, args.laplacian.is_some()) {
         (LaplacianChoice::Knn, _) => L::Knn(knn()),
         (LaplacianChoice::Cotan, true) => L::Cotangent,
+        (LaplacianChoice::Intrinsic, _) => L::Intrinsic,
         (LaplacianChoice::Cloud, true) => {
             L::Cloud { k: args.cloud_neighbours.unwrap_or(funcorr::cloud::DEFAULT_NEIGHBOURS) }
         }

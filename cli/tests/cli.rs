@@ -709,7 +709,13 @@ fn default_match_is_accurate_on_the_bundled_pair() {
     assert!(direct < 2.0, "default pipeline: direct mean error ×100 = {direct:.3}");
     let rep = report(&out);
     assert_eq!(rep["options"]["method"], "axiomatic");
-    assert_eq!(rep["candidates"]["candidates"].as_array().unwrap().len(), 4);
+    // The four candidate fits, then at most one corrected candidate per form of the basin
+    // search's correction, each naming the candidate it was corrected from.
+    let cands = rep["candidates"]["candidates"].as_array().unwrap();
+    assert!((4..=6).contains(&cands.len()), "{} candidates", cands.len());
+    assert!(cands[..4].iter().all(|c| c["corrected_from"].is_null()));
+    assert!(cands[4..].iter().all(|c| c["corrected_from"][0].as_u64().is_some_and(|f| f < 4)));
+    assert!(rep["correction"]["trace"].as_array().is_some_and(|t| !t.is_empty()));
     std::fs::remove_dir_all(&d).unwrap();
 }
 
@@ -1806,4 +1812,68 @@ fn messages_name_what_the_user_gave() {
         assert!(r.status.success(), "the advice {advice:?} does not work: {}", text(&r.stderr));
     }
     std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// The bundled shape `name` subdivided once (19,990 vertices), written to `dir` as an OFF file.
+#[cfg(unix)]
+fn subdivided(name: &str, dir: &Path) -> PathBuf {
+    let funcorr::shape::Shape::Mesh(m) = funcorr::shape::Shape::load(&data(name)).unwrap() else {
+        panic!("{name} is not a mesh")
+    };
+    let m = funcorr::primitives::midpoint_subdivision(&m).unwrap();
+    let path = dir.join(name);
+    let mesh = funcorr::io::MeshData { vertices: m.vertices().to_vec(), faces: m.faces().to_vec(), colors: None };
+    funcorr::io::write_mesh(&path, &mesh).unwrap();
+    path
+}
+
+#[cfg(unix)]
+#[test]
+fn ctrl_c_stops_a_match_promptly_and_publishes_nothing() {
+    use std::time::{Duration, Instant};
+    let d = tmp("sigint");
+    let (x, y) = (subdivided("tr_reg_000.off", &d), subdivided("tr_reg_001.off", &d));
+    // Ctrl-C 1 s and 6 s into a match that takes far longer (the eigenbases of two 20k-vertex
+    // meshes, then the pipeline), into a fresh directory and into one holding an earlier run's
+    // file, which must stay as it was.
+    let earlier = d.join("earlier");
+    std::fs::create_dir_all(&earlier).unwrap();
+    std::fs::write(earlier.join("map.txt"), "0\n").unwrap();
+    for (after, out) in [(1.0, d.join("fresh")), (6.0, earlier.clone())] {
+        let mut child = Command::new(BIN)
+            .args(["match", x.to_str().unwrap(), y.to_str().unwrap(), "-o", out.to_str().unwrap()])
+            .env("FUNCORR_CACHE_DIR", d.join("cache"))
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_secs_f64(after));
+        assert!(child.try_wait().unwrap().is_none(), "the match ended within {after} s");
+        let sent = Instant::now();
+        assert!(Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap().success());
+        let status = loop {
+            if let Some(s) = child.try_wait().unwrap() {
+                break s;
+            }
+            assert!(sent.elapsed() < Duration::from_secs(10), "still running 10 s after Ctrl-C");
+            std::thread::sleep(Duration::from_millis(10));
+        };
+        let latency = sent.elapsed();
+        let mut err = String::new();
+        std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+        assert_eq!(status.code(), Some(130), "{err}");
+        assert!(err.contains("funcorr: interrupted (Ctrl-C)") && !err.contains("panicked"), "{err}");
+        assert!(latency < Duration::from_secs(2), "exited {latency:?} after Ctrl-C (at {after} s)");
+        // Nothing published, no staging directory left: the fresh directory is gone, the other
+        // holds exactly what it held.
+        let mut left: Vec<String> = match std::fs::read_dir(&out) {
+            Ok(entries) => entries.map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect(),
+            Err(_) => vec![],
+        };
+        left.sort();
+        let expected: Vec<String> = if out == earlier { vec!["map.txt".into()] } else { vec![] };
+        assert_eq!(left, expected, "{out:?}");
+        if out == earlier {
+            assert_eq!(std::fs::read_to_string(out.join("map.txt")).unwrap(), "0\n");
+        }
+    }
 }

@@ -15,21 +15,39 @@ Shapes are given as a file path, a tuple ``(V, F)`` (V (n, 3) any float dtype, F
 int64, 0-based, any memory order; F = None for a point cloud), an (n, d) array of points, or a
 :class:`PreparedShape` (shape + Laplacian + eigenbasis, computed once by :func:`prepare`).
 
+Units: eigenvalues, eigenvectors, vertex weights and functional maps are in the shapes' own
+units (as :func:`cotangent_laplacian` gives them; ``C[0, 0] = ±√(area_Y / area_X)``), whatever
+the library computes internally (each prepared shape scaled to unit area, so that the maps
+between two shapes do not depend on their units).
+
 Every computation releases the GIL and runs on its own rayon pool of
 ``set_num_threads(n)`` / ``$FUNCORR_NUM_THREADS`` threads (default: every core), so Python
-threads and Ray workers run in parallel without oversubscribing the machine.
+threads and Ray workers run in parallel without oversubscribing the machine. Ctrl-C stops any
+call within a fraction of a second (KeyboardInterrupt; nothing half-written is left, and the
+process goes on normally). The long calls (:func:`match`, :func:`prepare`,
+:func:`geodesic_all_pairs`, :func:`funcorr.batch.match_pairs`) show a progress bar when run in a
+terminal or a notebook (``progress=``; ``$FUNCORR_PROGRESS=0`` for none).
 """
 
 from __future__ import annotations
 
-import json
-from dataclasses import dataclass, field
-from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+# The namespace holds the API only (``dir(funcorr)``): helpers are imported under private names,
+# typing names only for the type checker (annotations are strings here).
+import json as _json
+from dataclasses import dataclass as _dataclass
+from typing import TYPE_CHECKING as _TYPE_CHECKING
 
-import numpy as np
+import numpy as _np
 
 from . import _funcorr
+from ._progress import reporting as _reporting
 from ._funcorr import PreparedShape, get_num_threads
+
+if _TYPE_CHECKING:
+    from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+
+    ShapeLike = Any  # path | (V, F) | (n, d) array | PreparedShape
+    BasisLike = Any  # PreparedShape | (eigenvalues, eigenvectors, mass)
 
 __version__ = _funcorr.__version__
 
@@ -40,6 +58,7 @@ __all__ = [
     "write_mesh",
     "read_vts",
     "cotangent_laplacian",
+    "intrinsic_laplacian",
     "knn_laplacian",
     "cloud_laplacian",
     "stiffness",
@@ -55,6 +74,7 @@ __all__ = [
     "icp_refine",
     "zoomout_refine",
     "maps_from_fmap",
+    "nearest_rows",
     "soft_map",
     "fmap_from_map",
     "axiomatic_fmap",
@@ -71,23 +91,20 @@ __all__ = [
     "get_num_threads",
 ]
 
-_threads_setting: Optional[int] = None
+_threads_setting = None  # the last set_num_threads argument (funcorr.batch restores it)
 
 
 def set_num_threads(n: Optional[int] = None) -> None:
     """Threads each funcorr call uses (None or 0: every core, or ``$FUNCORR_NUM_THREADS`` when
     set). Each call runs on a rayon pool of that many threads of its own, with the GIL
-    released, so k Python threads calling funcorr at once use k · n threads."""
+    released, so k Python threads calling funcorr at once use k · n threads. A negative or
+    non-integer ``n`` raises ValueError."""
     global _threads_setting
     _funcorr.set_num_threads(n)
     _threads_setting = n
 
 
-ShapeLike = Any  # path | (V, F) | (n, d) array | PreparedShape
-BasisLike = Any  # PreparedShape | (eigenvalues, eigenvectors, mass)
-
-
-def read_mesh(path) -> Tuple[np.ndarray, np.ndarray]:
+def read_mesh(path) -> Tuple[_np.ndarray, _np.ndarray]:
     """Reads a mesh or point cloud (OFF, OBJ, PLY, XYZ/CSV/TXT/PTS, NPY).
 
     Returns ``(V, F)``: V (n, 3) float64, F (f, 3) int64, 0-based ((0, 3) for point clouds).
@@ -102,7 +119,7 @@ def write_mesh(path, V, F=None, colors=None) -> None:
     _funcorr.write_mesh(path, V, F, colors)
 
 
-def read_vts(path, n: Optional[int] = None) -> np.ndarray:
+def read_vts(path, n: Optional[int] = None) -> _np.ndarray:
     """Reads a 1-based vertex list (.vts, one id per line) as 0-based int64 indices, each < n
     when n is given."""
     return _funcorr.read_vts(path, n)
@@ -126,6 +143,21 @@ def cotangent_laplacian(V, F):
     return _csr(parts, len(mass)), mass
 
 
+def intrinsic_laplacian(V, F):
+    """The intrinsic Delaunay Laplacian of a triangle mesh: the cotangent Laplacian of the same
+    surface re-triangulated by intrinsic edge flips (non-negative weights on meshes with obtuse
+    or sliver triangles; the cotangent Laplacian itself on Delaunay meshes). Returns ``(W csr
+    (n × n), A (n,))`` as :func:`cotangent_laplacian`."""
+    parts, mass = _funcorr.intrinsic_laplacian(V, F)
+    return _csr(parts, len(mass)), mass
+
+
+def nearest_rows(reference, query) -> _np.ndarray:
+    """For every row of ``query`` (q, d) the index of the nearest row of ``reference`` (r, d)
+    (Euclidean): (q,) int64. The search that turns spectral embeddings into point maps."""
+    return _funcorr.nearest_rows(reference, query)
+
+
 def knn_laplacian(points, k: int = 10, sigma: Optional[float] = None, vertex_weights: str = "identity"):
     """The paper's kNN graph Laplacian (eq. (1)) of points (n, d): symmetric K nearest
     neighbours, Gaussian weights with self-tuning σ (or fixed ``sigma``), A = I
@@ -146,23 +178,29 @@ def stiffness(shape: PreparedShape):
     return _csr(shape._stiffness(), shape.n)
 
 
-def prepare(shape: ShapeLike, k: int = 200, cache_dir=None, **laplacian) -> PreparedShape:
+def prepare(shape: ShapeLike, k: int = 200, cache_dir=None, progress=None, **laplacian) -> PreparedShape:
     """A shape with its Laplacian and first k eigenpairs, computed once for many pairs.
 
     ``shape``: a path, ``(V, F)``, ``(V, None)`` / an (n, d) array of points.
-    ``laplacian``: ``laplacian="auto"|"cotan"|"cloud"|"knn"`` (auto: cotangent for meshes, the
-    point-cloud Laplacian for 3-D points, kNN for other dimensions), ``cloud_neighbours=30``,
-    ``knn=10``, ``vertex_weights="identity"|"degree"``, ``sigma=None``.
+    ``laplacian``: ``laplacian="auto"|"cotan"|"intrinsic"|"cloud"|"knn"`` (auto: cotangent for
+    meshes, the point-cloud Laplacian for 3-D points, kNN for other dimensions; ``"intrinsic"``:
+    the cotangent Laplacian of the mesh's intrinsic Delaunay triangulation, for meshes with
+    obtuse or sliver triangles — the cotangent Laplacian itself on Delaunay meshes),
+    ``cloud_neighbours=30``, ``knn=10``, ``vertex_weights="identity"|"degree"``, ``sigma=None``.
     ``cache_dir``: a directory (or True for ``$FUNCORR_CACHE_DIR`` / ``~/.cache/funcorr``) where
-    eigenbases are cached, keyed by the Laplacian; None (default): no cache.
+    eigenbases are cached, keyed by the Laplacian; None (default): no cache. ``progress``: None
+    (a bar in a terminal or a notebook), True, False, or a callable ``(stage, done, total)``
+    (module ``funcorr._progress``). Ctrl-C stops the call (KeyboardInterrupt).
 
-    The result has ``.eigenvalues`` (k), ``.eigenvectors`` Φ (n × k), ``.mass`` A (n),
-    ``.vertices``, ``.faces``, ``.n``, ``.k``; it pickles (for Ray's object store).
+    The result has ``.eigenvalues`` (k,), ``.eigenvectors`` Φ (n, k), ``.mass`` A (n,) (in the
+    shape's units: Φᵀ diag(A) Φ = I, Σ A = ``.area``), ``.vertices``, ``.faces``, ``.n``, ``.k``;
+    it pickles (for Ray's object store).
     """
-    return _funcorr.prepare(shape, k, cache_dir, **laplacian)
+    with _reporting(progress, "funcorr.prepare") as report:
+        return _funcorr.prepare(shape, k, cache_dir, report, **laplacian)
 
 
-def eigenbasis(V, F=None, k: int = 100, **options) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+def eigenbasis(V, F=None, k: int = 100, **options) -> Tuple[_np.ndarray, _np.ndarray, _np.ndarray]:
     """First k eigenpairs of W φ = λ A φ (shift-invert block Lanczos, verified residuals,
     deterministic signs). V (n, 3) (or (n, d) points with F = None), F (f, 3).
 
@@ -172,29 +210,29 @@ def eigenbasis(V, F=None, k: int = 100, **options) -> Tuple[np.ndarray, np.ndarr
     return p.eigenvalues, p.eigenvectors, p.mass
 
 
-def hks(basis: BasisLike, count: int = 100, times=None, normalize: bool = True) -> np.ndarray:
+def hks(basis: BasisLike, count: int = 100, times=None, normalize: bool = True) -> _np.ndarray:
     """Heat kernel signatures (n, q): ``count`` times log-spaced as Sun et al. (or ``times``),
     scale-normalized. ``basis``: a PreparedShape or (eigenvalues, eigenvectors, mass)."""
     return _funcorr.hks(basis, count, times, normalize)
 
 
-def wks(basis: BasisLike, count: int = 100, normalize: bool = True) -> np.ndarray:
+def wks(basis: BasisLike, count: int = 100, normalize: bool = True) -> _np.ndarray:
     """Wave kernel signatures (n, count) from the whole basis, scale-normalized."""
     return _funcorr.wks(basis, count, normalize)
 
 
-def wks_recipe(basis: BasisLike, energies: int = 100, eigenpairs: int = 128, keep_every: int = 2) -> np.ndarray:
+def wks_recipe(basis: BasisLike, energies: int = 100, eigenpairs: int = 128, keep_every: int = 2) -> _np.ndarray:
     """The WKS of ``match``'s default data: ``energies`` energies from the first ``eigenpairs``
     eigenpairs, every ``keep_every``-th kept (pyFM's pipeline; 50 functions by default)."""
     return _funcorr.wks_recipe(basis, energies, eigenpairs, keep_every)
 
 
-def hkm(basis: BasisLike, seeds, count: int = 10, times=None, normalize: bool = True) -> np.ndarray:
+def hkm(basis: BasisLike, seeds, count: int = 10, times=None, normalize: bool = True) -> _np.ndarray:
     """Heat kernel maps k_t(p, ·) (n, len(seeds) · times), seed-major, for seed vertices p."""
     return _funcorr.hkm(basis, seeds, count, times, normalize)
 
 
-def persistence_segments(shape: PreparedShape, **options) -> np.ndarray:
+def persistence_segments(shape: PreparedShape, **options) -> _np.ndarray:
     """Persistence-based segmentation of a prepared shape: labels 1..s (n,) int64. Options:
     ``seg_function="hks"|"agd"``, ``threshold=0.1``, ``hks_time=0.25``."""
     return _funcorr.persistence_segments(shape, **options)
@@ -208,35 +246,50 @@ def regions(X: PreparedShape, Y: PreparedShape, kind: str = "persistence", label
     return _funcorr.regions(X, Y, kind, labels_x, labels_y, **options)
 
 
-@dataclass
+@_dataclass(repr=False)
 class MatchResult:
     """The result of :func:`match`.
 
     ``map_xy`` (n,) int64: for every vertex i of X the vertex of Y (``map.txt`` of
     ``funcorr match``). ``map_yx`` (m,): for every vertex of Y a vertex of X (the pull-back of
     the final functional map; used to transfer colours from X to Y). ``C`` (k_Y × k_X): the
-    final functional map, X coefficients → Y coefficients; ``C_method`` the method's own before
-    refinement; ``coefficients`` (A, B) of the completion method's subspace form (k' × k), else
-    None. ``X``, ``Y``: the prepared shapes (reusable). ``report``: options, sizes, solver and
-    per-stage seconds (the report.json of ``funcorr match``).
+    final functional map, X coefficients → Y coefficients (between the shapes' own bases);
+    ``C_method`` the method's own before refinement; ``coefficients`` (A, B) of the completion
+    method's subspace form (k' × k), else None. ``X``, ``Y``: the prepared shapes (reusable).
+    ``report``: options, sizes, solver and per-stage seconds (the report.json of
+    ``funcorr match``). ``evaluation``: the last :meth:`evaluate`'s result (None before).
     """
 
-    map_xy: np.ndarray
-    map_yx: np.ndarray
-    C: np.ndarray
-    C_method: np.ndarray
-    coefficients: Optional[Tuple[np.ndarray, np.ndarray]]
+    map_xy: _np.ndarray
+    map_yx: _np.ndarray
+    C: _np.ndarray
+    C_method: _np.ndarray
+    coefficients: Optional[Tuple[_np.ndarray, _np.ndarray]]
     stages: List[Tuple[str, float]]
     report: Dict[str, Any]
     q: int
-    X: PreparedShape = field(repr=False)
-    Y: PreparedShape = field(repr=False)
+    X: PreparedShape
+    Y: PreparedShape
+    evaluation: Optional[Dict[str, Any]] = None
+
+    def __repr__(self) -> str:
+        method = self.report.get("options", {}).get("method", "?") if isinstance(self.report, dict) else "?"
+        seconds = sum(t for _, t in self.stages)
+        text = (
+            f"MatchResult(method={method!r}, n={len(self.map_xy)}, m={len(self.map_yx)}, "
+            f"C {self.C.shape[0]}×{self.C.shape[1]}, q={self.q}, {seconds:.1f} s"
+        )
+        if self.evaluation is not None:
+            text += f", mean error ×100 {100 * self.evaluation['mean']:.2f}"
+        return text + ")"
 
     def evaluate(self, gt_x, gt_y, gt_y_sym=None, geodesics: str = "exact") -> Dict[str, Any]:
-        """Geodesic errors of ``map_xy`` against ground truth (see :func:`evaluate`)."""
-        return evaluate(self.map_xy, self.Y, gt_x, gt_y, gt_y_sym, geodesics)
+        """Geodesic errors of ``map_xy`` against ground truth (see :func:`evaluate`); kept as
+        ``evaluation`` (and shown by ``repr``)."""
+        self.evaluation = evaluate(self.map_xy, self.Y, gt_x, gt_y, gt_y_sym, geodesics)
+        return self.evaluation
 
-    def render(self, width: int = 1600, height: int = 900, view: Tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+    def render(self, width: int = 1600, height: int = 900, view: Tuple[float, float] = (0.0, 0.0)) -> _np.ndarray:
         """X coloured by position beside Y coloured through ``map_yx``: (h, w, 3) uint8."""
         return render_pair(self.X, self.Y, self.map_yx, width, height, view)
 
@@ -295,14 +348,14 @@ def _colors(c, n: int, name: str):
     """(n, 3) colours as uint8: uint8 as is, floats in [0, 1] (pyFM's colour maps) scaled."""
     if c is None:
         return None
-    a = np.asarray(c)
+    a = _np.asarray(c)
     if a.ndim != 2 or a.shape != (n, 3):
         raise ValueError(f"{name}: expected shape ({n}, 3), got {a.shape}")
-    if a.dtype == np.uint8:
-        return np.ascontiguousarray(a)
-    if np.issubdtype(a.dtype, np.floating):
-        return np.ascontiguousarray(np.clip(np.round(255 * a), 0, 255).astype(np.uint8))
-    return np.ascontiguousarray(np.clip(a, 0, 255).astype(np.uint8))
+    if a.dtype == _np.uint8:
+        return _np.ascontiguousarray(a)
+    if _np.issubdtype(a.dtype, _np.floating):
+        return _np.ascontiguousarray(_np.clip(_np.round(255 * a), 0, 255).astype(_np.uint8))
+    return _np.ascontiguousarray(_np.clip(a, 0, 255).astype(_np.uint8))
 
 
 def _name(shape, default: str) -> str:
@@ -358,7 +411,7 @@ def view(
     field_list = []
     for name, spec in (fields or {}).items():
         side, values, *rest = spec
-        field_list.append((str(name), str(side), np.asarray(values, dtype=np.float64).ravel(), int(rest[0]) if rest and rest[0] is not None else None))
+        field_list.append((str(name), str(side), _np.asarray(values, dtype=_np.float64).ravel(), int(rest[0]) if rest and rest[0] is not None else None))
     gt_x = gt_y = gt_y_sym = None
     if gt is not None:
         gt_x, gt_y, *rest = gt
@@ -367,13 +420,13 @@ def view(
     html = _funcorr.viewer_html(
         X,
         Y,
-        None if map_xy is None else np.asarray(map_xy),
-        None if map_yx is None else np.asarray(map_yx),
+        None if map_xy is None else _np.asarray(map_xy),
+        None if map_yx is None else _np.asarray(map_yx),
         _colors(colors_x, n, "colors_x"),
         _colors(colors_y, m, "colors_y") if Y is not None else None,
-        None if gt_x is None else np.asarray(gt_x),
-        None if gt_y is None else np.asarray(gt_y),
-        None if gt_y_sym is None else np.asarray(gt_y_sym),
+        None if gt_x is None else _np.asarray(gt_x),
+        None if gt_y is None else _np.asarray(gt_y),
+        None if gt_y_sym is None else _np.asarray(gt_y_sym),
         geodesics,
         error_max,
         field_list,
@@ -386,7 +439,7 @@ def view(
     return Viewer(html, height)
 
 
-def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str, Tuple[Any, Any]] = "wks", **options) -> MatchResult:
+def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str, Tuple[Any, Any]] = "wks", progress=None, **options) -> MatchResult:
     """Dense correspondence X → Y: the pipeline of ``funcorr match`` (same defaults, same map).
 
     ``X``, ``Y``: paths, ``(V, F)`` tuples, point arrays or PreparedShapes (a raw shape is
@@ -412,12 +465,18 @@ def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str
     :func:`prepare`; ``seg_function``, ``threshold``, ``hks_time``; ``cache_dir``. An unknown
     keyword raises TypeError; a bad value ValueError naming it.
 
+    ``progress``: None (default: a bar on stderr in a terminal, a notebook-friendly one in
+    Jupyter, nothing when stderr is a file or a pipe; ``$FUNCORR_PROGRESS=0`` turns it off),
+    True, False, or a callable ``(stage, done, total)`` (module ``funcorr._progress``). Ctrl-C
+    stops the call within a fraction of a second with KeyboardInterrupt.
+
     Returns a :class:`MatchResult`; ``result.map_xy[i]`` is the vertex of Y matched to vertex i
     of X.
     """
     opts = dict(options)
     opts["method"] = method
-    r = _funcorr.match_shapes(X, Y, data, opts)
+    with _reporting(progress, "funcorr.match") as report:
+        r = _funcorr.match_shapes(X, Y, data, opts, report)
     return MatchResult(
         map_xy=r["map_xy"],
         map_yx=r["map_yx"],
@@ -425,41 +484,44 @@ def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str
         C_method=r["C_method"],
         coefficients=r["coefficients"],
         stages=list(r["stages"]),
-        report=json.loads(r["report"]),
+        report=_json.loads(r["report"]),
         q=r["q"],
         X=r["X"],
         Y=r["Y"],
     )
 
 
-def icp_refine(X: PreparedShape, Y: PreparedShape, C, iterations: int = 10) -> Tuple[np.ndarray, np.ndarray]:
-    """ICP refinement (Ovsjanikov et al. 2012) of C (k × k, X → Y coefficients): alternates the
-    point map (nearest rows of Ψ_k C for the rows of Φ_k) and the orthonormal C. Returns
+def icp_refine(X: PreparedShape, Y: PreparedShape, C, iterations: int = 10) -> Tuple[_np.ndarray, _np.ndarray]:
+    """ICP refinement (Ovsjanikov et al. 2012) of C (k_Y × k_X, X → Y coefficients): alternates
+    the point map (nearest rows of Ψ C for the rows of Φ) and the orthonormal C (between the
+    unit-area bases; ``C[0, 0]`` stays ±√(area_Y / area_X) in the shapes' units). Returns
     ``(C, map_xy)``."""
     return _funcorr.icp_refine(X, Y, C, iterations)
 
 
-def zoomout_refine(X: PreparedShape, Y: PreparedShape, C, k_final: int, step: int = 1) -> Tuple[np.ndarray, np.ndarray]:
+def zoomout_refine(X: PreparedShape, Y: PreparedShape, C, k_final: int, step: int = 1) -> Tuple[_np.ndarray, _np.ndarray]:
     """ZoomOut (Melzi et al. 2019) of C (k × k, X → Y coefficients) up to k_final × k_final in
     steps of ``step``, every vertex. Returns ``(C, map_xy)``."""
     return _funcorr.zoomout_refine(X, Y, C, k_final, step)
 
 
-def maps_from_fmap(X: PreparedShape, Y: PreparedShape, C) -> Tuple[np.ndarray, np.ndarray]:
-    """Point maps of a functional map C (k × k, X → Y coefficients): ``(map_xy (n,), map_yx (m,))``
-    by nearest neighbours in the spectral embedding."""
-    return _funcorr.maps_from_fmap(X, Y, C)
+def maps_from_fmap(X: PreparedShape, Y: PreparedShape, C, adjoint: bool = False) -> Tuple[_np.ndarray, _np.ndarray]:
+    """Point maps of a functional map C (k_Y × k_X, X → Y coefficients): ``(map_xy (n,), map_yx
+    (m,))`` by nearest neighbours in the spectral embedding: map_xy matches the rows of Φ to those
+    of Ψ C, map_yx the rows of Ψ to those of Φ Cᵀ (pyFM's ``FM_to_p2p``), or with ``adjoint``
+    the rows of Ψ C to those of Φ (``FM_to_p2p(use_adj=True)``)."""
+    return _funcorr.maps_from_fmap(X, Y, C, adjoint)
 
 
-def soft_map(X: PreparedShape, Y: PreparedShape, C, i: int) -> np.ndarray:
+def soft_map(X: PreparedShape, Y: PreparedShape, C, i: int) -> _np.ndarray:
     """The soft map T δ_i of vertex i of X: the function (m,) on Y that a functional map C
     (k × k, X → Y coefficients) gives the delta at i (``--soft i`` of ``funcorr match``)."""
     return _funcorr.soft_map(X, Y, C, i)
 
 
-def fmap_from_map(X: PreparedShape, Y: PreparedShape, map_yx, k: int) -> np.ndarray:
-    """The functional map C = Ψ_kᵀ diag(A_Y) Π Φ_k (k × k, X → Y coefficients) of a point map Y → X
-    (``map_yx`` (m,), vertices of X)."""
+def fmap_from_map(X: PreparedShape, Y: PreparedShape, map_yx, k) -> _np.ndarray:
+    """The functional map C = Ψ_{k_Y}ᵀ diag(A_Y) Π Φ_{k_X} (k_Y × k_X, X → Y coefficients) of a
+    point map Y → X (``map_yx`` (m,), vertices of X); ``k`` an int (square) or (k_X, k_Y)."""
     return _funcorr.fmap_from_map(X, Y, map_yx, k)
 
 
@@ -468,7 +530,7 @@ def axiomatic_fmap(
     Y: PreparedShape,
     F,
     G,
-    k: int,
+    k,
     w_descr: float = 1.0,
     w_lap: float = 0.1,
     w_dcomm: float = 1.0,
@@ -476,9 +538,9 @@ def axiomatic_fmap(
     mask: str = "resolvent",
     orientation: str = "preserve",
     fix_constant: bool = True,
-) -> Tuple[np.ndarray, float]:
-    """The axiomatic functional map C (k × k, X → Y coefficients) from descriptors F (n, q) on X
-    and G (m, q) on Y: the exact minimizer of descriptor preservation ``w_descr``, Laplacian
+) -> Tuple[_np.ndarray, float]:
+    """The axiomatic functional map C (k × k, or k_Y × k_X for ``k = (k_X, k_Y)``; X → Y
+    coefficients) from descriptors F (n, q) on X and G (m, q) on Y: the exact minimizer of descriptor preservation ``w_descr``, Laplacian
     commutativity ``w_lap`` (``mask="resolvent"|"standard"``), descriptor commutativity
     ``w_dcomm`` and orientation ``w_orient`` (``orientation="preserve"|"reverse"``), each term
     scale-free (funcorr's ``fmap::energy``), the first column fixed to map constants to
@@ -486,37 +548,40 @@ def axiomatic_fmap(
     return _funcorr.axiomatic_fmap(X, Y, F, G, k, w_descr, w_lap, w_dcomm, w_orient, mask, orientation, fix_constant)
 
 
-def geodesic_distances(mesh: ShapeLike, sources, method: str = "exact") -> np.ndarray:
+def geodesic_distances(mesh: ShapeLike, sources, method: str = "exact") -> _np.ndarray:
     """Geodesic distances on a triangle mesh from ``sources`` to every vertex.
 
     ``method``: ``"exact"`` (polyhedral, MMP window propagation), ``"heat"`` (heat method,
     ~2–4 % error), ``"dijkstra"`` (mesh edges, upper bound). A single source (an int) gives
     (n,), a list of s sources (n, s)."""
-    if np.isscalar(sources):
-        return _funcorr.geodesic_distances(mesh, np.array([sources]), method)[:, 0]
+    if _np.isscalar(sources):
+        return _funcorr.geodesic_distances(mesh, _np.array([sources]), method)[:, 0]
     return _funcorr.geodesic_distances(mesh, sources, method)
 
 
-def geodesic_pairs(mesh: ShapeLike, pairs, method: str = "exact") -> np.ndarray:
+def geodesic_pairs(mesh: ShapeLike, pairs, method: str = "exact") -> _np.ndarray:
     """d(s, t) for every row (s, t) of ``pairs`` (p, 2); exact queries stop at their target."""
     return _funcorr.geodesic_pairs(mesh, pairs, method)
 
 
-def geodesic_all_pairs(mesh: ShapeLike, out=None, method: str = "exact", chunk: int = 64) -> np.ndarray:
+def geodesic_all_pairs(mesh: ShapeLike, out=None, method: str = "exact", chunk: int = 64, progress=None) -> _np.ndarray:
     """All-pairs geodesic distances written into ``out`` (n × n float64, writable, e.g.
     ``np.memmap(path, dtype=np.float64, mode="w+", shape=(n, n))``; None: a new array), row i the
-    distances from vertex i, ``chunk`` sources at a time. Returns ``out``."""
+    distances from vertex i, ``chunk`` sources at a time. ``progress``: as :func:`match` (the
+    sources done). Ctrl-C stops the call between two chunks' sources (KeyboardInterrupt; the
+    rows finished so far are in ``out``). Returns ``out``."""
     if out is None:
         n = mesh.n if isinstance(mesh, PreparedShape) else _n_vertices(mesh)
-        out = np.empty((n, n), dtype=np.float64)
-    _funcorr.geodesic_all_pairs(mesh, out, method, chunk)
+        out = _np.empty((n, n), dtype=_np.float64)
+    with _reporting(progress, "funcorr.geodesic_all_pairs") as report:
+        _funcorr.geodesic_all_pairs(mesh, out, method, chunk, report)
     return out
 
 
 def _n_vertices(shape: ShapeLike) -> int:
     if isinstance(shape, tuple):
-        return np.asarray(shape[0]).shape[0]
-    if isinstance(shape, np.ndarray):
+        return _np.asarray(shape[0]).shape[0]
+    if isinstance(shape, _np.ndarray):
         return shape.shape[0]
     return read_mesh(shape)[0].shape[0]
 
@@ -534,18 +599,21 @@ def evaluate(map_xy, Y: ShapeLike, gt_x, gt_y, gt_y_sym=None, geodesics: str = "
     return _funcorr.evaluate(map_xy, Y, gt_x, gt_y, gt_y_sym, geodesics)
 
 
-def cumulative_curve(errors, thresholds=None) -> Tuple[np.ndarray, np.ndarray]:
+def cumulative_curve(errors, thresholds=None) -> Tuple[_np.ndarray, _np.ndarray]:
     """``(thresholds, fraction of errors ≤ each)``; thresholds default to 0, 0.005, …, 0.25."""
     return _funcorr.cumulative_curve(errors, thresholds)
 
 
-def render_pair(X: ShapeLike, Y: ShapeLike, map_yx, width: int = 1600, height: int = 900, view: Tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+def render_pair(X: ShapeLike, Y: ShapeLike, map_yx, width: int = 1600, height: int = 900, view: Tuple[float, float] = (0.0, 0.0)) -> _np.ndarray:
     """X (left) coloured by position and Y (right) coloured by pulling X's colours back through
     ``map_yx`` (m,), CPU rasterizer: an (height, width, 3) uint8 image. ``view``: (azimuth,
     elevation) in degrees; (0, 0) looks along −Z with +Y up."""
     return _funcorr.render_pair(X, Y, map_yx, width, height, tuple(view))
 
 
-def render(shape: ShapeLike, colors=None, width: int = 800, height: int = 900, view: Tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+def render(shape: ShapeLike, colors=None, width: int = 800, height: int = 900, view: Tuple[float, float] = (0.0, 0.0)) -> _np.ndarray:
     """One shape (colours (n, 3) uint8, default by position): (height, width, 3) uint8."""
     return _funcorr.render(shape, colors, width, height, tuple(view))
+
+
+del annotations  # the __future__ import's name: not part of the API

@@ -22,14 +22,20 @@ The maps are the same whatever the engine, the number of jobs or threads (funcor
 not depend on the thread count), and the same as :func:`funcorr.match` on each pair. A pair that
 fails (a shape that cannot be prepared, a numerical failure) is reported in its result's
 ``error``, not raised; bad arguments (an unknown shape name, a bad option) raise before any work.
+
+Progress: a bar of the shapes prepared, then of the pairs done (``progress=``, as
+:func:`funcorr.match`). Ctrl-C stops every job (the local engine's threads, or Ray's tasks by
+``ray.cancel``) and raises KeyboardInterrupt; ``out_dir`` is then left as it was (it is written
+only once every pair is done).
 """
 
 from __future__ import annotations
 
 import json
 import os
+import threading
 import time
-from concurrent.futures import ThreadPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
@@ -38,6 +44,7 @@ import numpy as np
 
 import funcorr
 from funcorr import _funcorr
+from funcorr._progress import reporting
 
 __all__ = ["PairResult", "Dataset", "load_dataset", "match_pairs"]
 
@@ -124,7 +131,7 @@ def _prepare(shape, k: int, threads: int, laplacian: Dict[str, Any]):
         return shape, None
     try:
         funcorr.set_num_threads(threads)
-        return funcorr.prepare(shape, k=k, **laplacian), None
+        return funcorr.prepare(shape, k=k, progress=False, **laplacian), None
     except Exception as e:  # reported per pair
         return None, f"{type(e).__name__}: {e}"
 
@@ -137,7 +144,7 @@ def _pair_job(x_name: str, y_name: str, X, Y, x_err, y_err, data, options: Dict[
         return PairResult(x_name, y_name, error=f"not prepared: {which}")
     try:
         funcorr.set_num_threads(threads)
-        r = funcorr.match(X, Y, data=data, **options)
+        r = funcorr.match(X, Y, data=data, progress=False, **options)
         ev = None
         if gt is not None:
             gx, gy, gs, how = gt
@@ -188,6 +195,7 @@ def match_pairs(
     geodesics: str = "exact",
     threads_per_job: Optional[int] = None,
     callback: Optional[Callable[[PairResult], None]] = None,
+    progress=None,
     **match_options,
 ) -> List[PairResult]:
     """Matches every pair ``(x, y)`` of ``pairs`` (names of ``shapes``).
@@ -204,7 +212,9 @@ def match_pairs(
     evaluating each pair on them (``symmetric``: name → mirrored template points,
     ``geodesics``: "exact" | "heat" | "dijkstra"). ``out_dir``: also writes
     ``maps/X__Y.METHOD.txt`` (0-based, as ``funcorr bench``) and ``pairs.json``. ``callback``
-    is called with each result as it arrives.
+    is called with each result as it arrives. ``progress``: as :func:`funcorr.match` (stages
+    ``"shapes"`` and ``"pairs"``, counted). Ctrl-C stops every job and raises KeyboardInterrupt
+    (nothing is written to ``out_dir``).
 
     Returns the results in the order of ``pairs``; failed pairs have ``error`` set.
     """
@@ -224,37 +234,78 @@ def match_pairs(
     method = str(options.get("method", "axiomatic"))
     used = sorted({s for p in pairs for s in p})
     cores = os.cpu_count() or 1
-    if engine == "local":
-        jobs = n_jobs or cores
-        threads = threads_per_job or max(1, cores // jobs)
-        results = _run_local(named, used, pairs, k, laplacian, data, options, ground_truth, symmetric, geodesics, jobs, threads, callback)
-    else:
-        threads = threads_per_job or 1
-        results = _run_ray(named, used, pairs, k, laplacian, data, options, ground_truth, symmetric, geodesics, threads, callback)
+    with reporting(progress, "funcorr.batch") as report:
+        report = report or (lambda stage, done, total: None)
+        if engine == "local":
+            jobs = n_jobs or cores
+            threads = threads_per_job or max(1, cores // jobs)
+            results = _run_local(named, used, pairs, k, laplacian, data, options, ground_truth, symmetric, geodesics, jobs, threads, callback, report)
+        else:
+            threads = threads_per_job or 1
+            results = _run_ray(named, used, pairs, k, laplacian, data, options, ground_truth, symmetric, geodesics, threads, callback, report)
     if out_dir is not None:
         _write(Path(out_dir), results, method)
     return results
 
 
-def _run_local(named, used, pairs, k, laplacian, data, options, ground_truth, symmetric, geodesics, jobs, threads, callback):
+def _run_local(named, used, pairs, k, laplacian, data, options, ground_truth, symmetric, geodesics, jobs, threads, callback, report):
     previous = funcorr._threads_setting  # restored below
+    workers = set()  # the worker threads' idents, for cancelling their computations
+
+    def tracked(f, *args):
+        workers.add(threading.get_ident())
+        return f(*args)
+
+    pool = ThreadPoolExecutor(max_workers=jobs)
+    submitted = []
+
+    def submit(*args):
+        f = pool.submit(tracked, *args)
+        submitted.append(f)
+        return f
+
     try:
-        with ThreadPoolExecutor(max_workers=jobs) as pool:
-            prepared = dict(zip(used, pool.map(lambda s: _prepare(named[s], k, threads, laplacian), used)))
-            futures = {}
-            for i, (x, y) in enumerate(pairs):
-                (X, ex), (Y, ey) = prepared[x], prepared[y]
-                gt = _ground_truth(ground_truth, symmetric, geodesics, x, y)
-                futures[pool.submit(_pair_job, x, y, X, Y, ex, ey, data, options, gt, threads)] = i
-            results: List[Optional[PairResult]] = [None] * len(pairs)
-            for f in as_completed(futures):
-                r = f.result()
-                results[futures[f]] = r
-                if callback is not None:
-                    callback(r)
+        shape_jobs = {submit(_prepare, named[s], k, threads, laplacian): s for s in used}
+        prepared = {}
+        for f in _as_completed(shape_jobs, "shapes", report):
+            prepared[shape_jobs[f]] = f.result()
+        futures = {}
+        for i, (x, y) in enumerate(pairs):
+            (X, ex), (Y, ey) = prepared[x], prepared[y]
+            gt = _ground_truth(ground_truth, symmetric, geodesics, x, y)
+            futures[submit(_pair_job, x, y, X, Y, ex, ey, data, options, gt, threads)] = i
+        results: List[Optional[PairResult]] = [None] * len(pairs)
+        for f in _as_completed(futures, "pairs", report):
+            r = f.result()
+            results[futures[f]] = r
+            if callback is not None:
+                callback(r)
+        pool.shutdown()
         return results
+    except BaseException:
+        # Ctrl-C (or a callback's exception): the queued jobs never start, the running ones
+        # stop at their next check (KeyboardInterrupt in their threads, not reported); a job
+        # that was just starting is cancelled by the next round.
+        pool.shutdown(wait=False, cancel_futures=True)
+        running = [f for f in submitted if not f.done()]
+        while running:
+            _funcorr._cancel_threads(list(workers))
+            _, running = wait(running, timeout=0.05)
+        pool.shutdown(wait=True)
+        raise
     finally:
         funcorr.set_num_threads(previous)
+
+
+def _as_completed(futures, stage: str, report):
+    """The futures as they complete, reporting (stage, done, total) at least every 0.2 s."""
+    pending, total = set(futures), len(futures)
+    report(stage, 0, total)
+    while pending:
+        done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
+        for f in done:
+            yield f
+        report(stage, total - len(pending), total)
 
 
 def _ray_prepare(shape, k, threads, laplacian):
@@ -266,7 +317,7 @@ def _ray_pair(x, y, prepared_x, prepared_y, data, options, gt, threads):
     return _pair_job(x, y, X, Y, ex, ey, data, options, gt, threads)
 
 
-def _run_ray(named, used, pairs, k, laplacian, data, options, ground_truth, symmetric, geodesics, threads, callback):
+def _run_ray(named, used, pairs, k, laplacian, data, options, ground_truth, symmetric, geodesics, threads, callback, report):
     try:
         import ray
     except ImportError as e:  # pragma: no cover - depends on the environment
@@ -283,16 +334,28 @@ def _run_ray(named, used, pairs, k, laplacian, data, options, ground_truth, symm
         pending[pair.remote(x, y, refs[x], refs[y], data, options, gt, threads)] = i
     results: List[Optional[PairResult]] = [None] * len(pairs)
     waiting = list(pending)
-    while waiting:
-        done, waiting = ray.wait(waiting, num_returns=1)
-        for ref in done:
-            i = pending[ref]
-            x, y = pairs[i]
+    try:
+        report("pairs", 0, len(pairs))
+        while waiting:
+            done, waiting = ray.wait(waiting, num_returns=1, timeout=0.2)
+            for ref in done:
+                i = pending[ref]
+                x, y = pairs[i]
+                try:
+                    r = ray.get(ref)
+                except Exception as e:  # a task or worker that died: reported for this pair
+                    r = PairResult(x, y, error=f"{type(e).__name__}: {e}")
+                results[i] = r
+                if callback is not None:
+                    callback(r)
+            report("pairs", len(pairs) - len(waiting), len(pairs))
+    except BaseException:
+        # Ctrl-C: Ray interrupts the running tasks (KeyboardInterrupt in their workers, which
+        # funcorr's calls there obey) and drops the queued ones.
+        for ref in waiting + list(refs.values()):
             try:
-                r = ray.get(ref)
-            except Exception as e:  # a task or worker that died: reported for this pair
-                r = PairResult(x, y, error=f"{type(e).__name__}: {e}")
-            results[i] = r
-            if callback is not None:
-                callback(r)
+                ray.cancel(ref)
+            except Exception:
+                pass
+        raise
     return results

@@ -65,6 +65,45 @@ fn cotangent_laplacian<'py>(
     Ok((csr_parts(py, &lap), arrays::vec_out(py, lap.mass.clone())))
 }
 
+/// `intrinsic_laplacian(V, F) -> (indptr, indices, data, mass)`: the cotangent Laplacian of the
+/// mesh's intrinsic Delaunay triangulation.
+#[pyfunction]
+fn intrinsic_laplacian<'py>(
+    py: Python<'py>,
+    vertices: &Bound<'py, PyAny>,
+    faces: &Bound<'py, PyAny>,
+) -> PyResult<(Csr<'py>, Bound<'py, PyArray1<f64>>)> {
+    let mesh = arrays::mesh(vertices, faces, "V", "F")?;
+    let lap = compute(py, move || funcorr::geodesic::intrinsic_delaunay_laplacian(&mesh))?;
+    Ok((csr_parts(py, &lap), arrays::vec_out(py, lap.mass.clone())))
+}
+
+/// `nearest_rows(reference (r, d), query (q, d)) -> (q,)`: for every row of `query` the index of
+/// the nearest row of `reference` (Euclidean; the library's spectral-embedding search).
+#[pyfunction]
+fn nearest_rows<'py>(
+    py: Python<'py>,
+    reference: &Bound<'py, PyAny>,
+    query: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyArray1<i64>>> {
+    let r = arrays::matrix(reference, "reference")?;
+    let q = arrays::matrix(query, "query")?;
+    if r.ncols() != q.ncols() || r.nrows() == 0 || r.ncols() == 0 {
+        return Err(value_error(
+            "query",
+            format!(
+                "reference is {}×{} and query {}×{}: need the same number d ≥ 1 of columns and a reference row",
+                r.nrows(),
+                r.ncols(),
+                q.nrows(),
+                q.ncols()
+            ),
+        ));
+    }
+    let idx = compute(py, move || funcorr::pointwise::nearest_neighbors(r.as_ref(), q.as_ref()))?;
+    Ok(arrays::index_out(py, &idx))
+}
+
 /// `knn_laplacian(points, k=10, sigma=None, vertex_weights="identity")`: the paper's eq. (1).
 #[pyfunction]
 #[pyo3(signature = (points, k=10, sigma=None, vertex_weights="identity"))]
@@ -287,16 +326,18 @@ fn geodesic_pairs<'py>(
     Ok(arrays::vec_out(py, d))
 }
 
-/// `geodesic_all_pairs(mesh, out, method="exact", chunk=64)`: every distance into `out`
-/// (n × n float64, writable, any memory order; e.g. an np.memmap), `chunk` sources at a time.
+/// `geodesic_all_pairs(mesh, out, method="exact", chunk=64, progress=None)`: every distance into
+/// `out` (n × n float64, writable, any memory order; e.g. an np.memmap), `chunk` sources at a
+/// time; `progress` a callable `(stage, done, total)` (sources done of n) or None.
 #[pyfunction]
-#[pyo3(signature = (mesh, out, method="exact", chunk=64))]
+#[pyo3(signature = (mesh, out, method="exact", chunk=64, progress=None))]
 fn geodesic_all_pairs<'py>(
     py: Python<'py>,
     mesh: &Bound<'py, PyAny>,
     out: &Bound<'py, PyAny>,
     method: &str,
     chunk: usize,
+    progress: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<()> {
     let m: Arc<TriMesh> = mesh_arg(mesh, "mesh")?;
     let n = m.n_vertices();
@@ -310,10 +351,13 @@ fn geodesic_all_pairs<'py>(
         return Err(value_error("chunk", "must be at least 1"));
     }
     let how = geodesic_method(method)?;
+    // One session for the whole call: its progress is the sources done of n.
+    let session = crate::Session::new(progress)?;
     let solver = {
         let m = m.clone();
         // Built once (the exact solver's preprocessing, the heat method's factorization).
-        compute(py, move || {
+        session.run(py, move || {
+            funcorr::progress::stage("geodesics")?;
             let s: Box<dyn Distances + Send + Sync> = match how {
                 GeodesicMethod::Exact => Box::new(funcorr::geodesic::ExactGeodesics::new(&m)?),
                 GeodesicMethod::Heat => Box::new(funcorr::geodesic::HeatGeodesics::new(&m)?),
@@ -328,7 +372,10 @@ fn geodesic_all_pairs<'py>(
         let sources: Vec<usize> = (start..(start + chunk).min(n)).collect();
         let s = solver.clone();
         let src = sources.clone();
-        let d = compute(py, move || s.distances_from(&src))?;
+        let d = session.run(py, move || {
+            funcorr::progress::step(start, n)?;
+            s.distances_from(&src)
+        })?;
         // Column j of d holds the distances from source j: row `source` of the output (and,
         // the distances being symmetric up to the solver's accuracy, not mirrored).
         for (j, &src) in sources.iter().enumerate() {
@@ -339,6 +386,7 @@ fn geodesic_all_pairs<'py>(
         }
         py.check_signals()?;
     }
+    session.report_now(py, &funcorr::progress::Status { stage: "geodesics".into(), done: n, total: n });
     Ok(())
 }
 
@@ -492,6 +540,8 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(write_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(cotangent_laplacian, m)?)?;
     m.add_function(wrap_pyfunction!(knn_laplacian, m)?)?;
+    m.add_function(wrap_pyfunction!(intrinsic_laplacian, m)?)?;
+    m.add_function(wrap_pyfunction!(nearest_rows, m)?)?;
     m.add_function(wrap_pyfunction!(cloud_laplacian, m)?)?;
     m.add_function(wrap_pyfunction!(hks, m)?)?;
     m.add_function(wrap_pyfunction!(wks, m)?)?;

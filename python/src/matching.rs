@@ -13,7 +13,7 @@ use funcorr::prepared::PreparedShape;
 use funcorr::shape::Shape;
 
 use crate::arrays::{self, value_error, I64s};
-use crate::prepared::{cache_arg, check_k, laplacian_choice, prepared_arg, PyPrepared};
+use crate::prepared::{cache_arg, check_k, laplacian_choice, prepared_arg, prepared_py, PyPrepared};
 use crate::{compute, options};
 
 /// A shape argument of `match`: prepared already, or to be prepared with `k` eigenpairs.
@@ -62,15 +62,17 @@ fn data_arg(obj: &Bound<'_, PyAny>) -> PyResult<Data> {
     ))
 }
 
-/// `match(X, Y, data, options)`: the whole pipeline of `funcorr match`. Returns a dict.
+/// `match(X, Y, data, options, progress)`: the whole pipeline of `funcorr match`. Returns a dict.
+/// `progress`: a callable `(stage, done, total)` or None.
 #[pyfunction]
-#[pyo3(signature = (x, y, data, options=None))]
+#[pyo3(signature = (x, y, data, options=None, progress=None))]
 fn match_shapes<'py>(
     py: Python<'py>,
     x: &Bound<'py, PyAny>,
     y: &Bound<'py, PyAny>,
     data: &Bound<'py, PyAny>,
     options: Option<&Bound<'py, PyDict>>,
+    progress: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     // Everything is checked before any work: data, options, shapes.
     let data = data_arg(data)?;
@@ -97,6 +99,9 @@ fn match_shapes<'py>(
         if let Side::Raw(shape) = s {
             check_k(shape, basis_k, &who, &format!("{who} (for {name})"))?;
         }
+        if needs_surface(&opts) {
+            check_surface(s, choice, name)?;
+        }
     }
     if let Data::Given(f, g) = &data {
         let n_of = |s: &Side| match s {
@@ -111,13 +116,15 @@ fn match_shapes<'py>(
         }
     }
     let opts_run = opts.clone();
-    let (px, py_, f, g, r) = compute(py, move || {
+    let (px, py_, f, g, r) = crate::compute_reporting(py, progress, move || {
         let prep = |s: Side| -> funcorr::Result<Arc<PreparedShape>> {
             match s {
                 Side::Ready(p) => Ok(p),
                 Side::Raw(shape) => {
                     // As `funcorr match`: the basis as computed (or cached), not truncated.
+                    funcorr::progress::stage("laplacian")?;
                     let (lap, surface) = funcorr::prepared::build_laplacian(&shape, choice)?;
+                    funcorr::progress::stage("eigenbasis")?;
                     let (basis, _) = funcorr::spectral::eigen_basis_cached(
                         &lap,
                         &funcorr::spectral::SpectralOptions::new(basis_k),
@@ -130,6 +137,7 @@ fn match_shapes<'py>(
         };
         let (px, py_) = rayon::join(|| prep(sx), || prep(sy));
         let (px, py_) = (px?, py_?);
+        funcorr::progress::stage("data")?;
         let (f, g) = match data {
             Data::Spec(spec) => spec.functions(px.parts(), py_.parts(), &seg)?,
             Data::Given(f, g) => (f, g),
@@ -157,9 +165,44 @@ fn match_shapes<'py>(
     out.set_item("report", funcorr::io::to_json_sorted(&report).map_err(crate::to_py)?)?;
     out.set_item("q", f.q())?;
     let _ = g;
-    out.set_item("X", PyPrepared { inner: px, choice })?;
-    out.set_item("Y", PyPrepared { inner: py_, choice })?;
+    out.set_item("X", PyPrepared::new(px, choice))?;
+    out.set_item("Y", PyPrepared::new(py_, choice))?;
     Ok(out)
+}
+
+/// Whether the options need each shape's surface (the axiomatic method's orientation term reads
+/// face gradients).
+fn needs_surface(opts: &funcorr::matching::MatchOptions) -> bool {
+    let fit = &opts.axiomatic.fit;
+    opts.method == funcorr::matching::Method::Axiomatic
+        && fit.weights.orientation > 0.0
+        && fit.orientation != funcorr::fmap::energy::Orientation::Ignore
+}
+
+/// A shape without a surface (points of another dimension than 3, or a kNN-graph Laplacian) is
+/// refused before any work when the options need one, naming the argument and the shape it
+/// should have.
+fn check_surface(s: &Side, choice: funcorr::prepared::LaplacianChoice, name: &str) -> PyResult<()> {
+    use funcorr::prepared::LaplacianChoice as L;
+    let why = match s {
+        Side::Ready(p) if p.triangles().is_none() => Some("this PreparedShape has none".to_string()),
+        Side::Ready(_) => None,
+        Side::Raw(_) if matches!(choice, L::Knn(_)) => Some("laplacian='knn' gives it none".to_string()),
+        Side::Raw(Shape::Points(p)) if p.dim() != 3 => {
+            Some(format!("got an array of shape ({}, {}) (taken as {}-D points)", p.len(), p.dim(), p.dim()))
+        }
+        Side::Raw(_) => None,
+    };
+    match why {
+        Some(why) => Err(value_error(
+            name,
+            format!(
+                "expected a mesh (V, F) or 3-D points of shape (n, 3): the axiomatic method's orientation term \
+                 needs a surface; {why} (for feature data use method='fmap', or orientation='ignore')"
+            ),
+        )),
+        None => Ok(()),
+    }
 }
 
 /// The eigenpairs per shape `match` computes for these data and options (`funcorr match`'s
@@ -177,9 +220,21 @@ fn match_basis_size(data: &Bound<'_, PyAny>, options: Option<&Bound<'_, PyDict>>
     Ok(k)
 }
 
+/// A functional map argument C (k_Y × k_X, coefficients on X → coefficients on Y).
 fn fmap_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Mat<f64>> {
     let c = arrays::matrix(obj, name)?;
-    if c.nrows() != c.ncols() || c.nrows() == 0 {
+    if c.nrows() == 0 || c.ncols() == 0 {
+        return Err(value_error(
+            name,
+            format!("expected a k_Y × k_X functional map, got {} × {}", c.nrows(), c.ncols()),
+        ));
+    }
+    Ok(c)
+}
+
+fn square_fmap_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Mat<f64>> {
+    let c = fmap_arg(obj, name)?;
+    if c.nrows() != c.ncols() {
         return Err(value_error(
             name,
             format!("expected a square k × k functional map, got {} × {}", c.nrows(), c.ncols()),
@@ -189,11 +244,50 @@ fn fmap_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Mat<f64>> {
 }
 
 fn check_c_fits(c: &Mat<f64>, x: &PreparedShape, y: &PreparedShape, name: &str) -> PyResult<()> {
-    let k = c.nrows();
-    if k > x.basis.k() || k > y.basis.k() {
+    let (ky, kx) = (c.nrows(), c.ncols());
+    if kx > x.basis.k() || ky > y.basis.k() {
         return Err(value_error(
             name,
-            format!("a {k} × {k} map needs {k} eigenpairs per shape; X has {} and Y {}", x.basis.k(), y.basis.k()),
+            format!(
+                "a {ky} × {kx} map (k_Y × k_X) needs {kx} eigenpairs on X and {ky} on Y; X has {} and Y {}",
+                x.basis.k(),
+                y.basis.k()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Units (see `PyPrepared`): the bindings' functional maps are between the shapes' own bases,
+/// the library computes between the unit-area ones. C_input = s · C_unit with
+/// s = √(area_Y / area_X) (φ_input = φ_unit / √area).
+fn unit_scale(x: &PreparedShape, y: &PreparedShape) -> f64 {
+    (y.area / x.area).sqrt()
+}
+
+fn scaled(c: Mat<f64>, s: f64) -> Mat<f64> {
+    if s == 1.0 {
+        c
+    } else {
+        &c * faer::Scale(s)
+    }
+}
+
+/// Sizes (k_X, k_Y) from an int k (square) or a pair (k_X, k_Y).
+fn sizes_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<(usize, usize)> {
+    if let Ok(k) = obj.extract::<usize>() {
+        return Ok((k, k));
+    }
+    obj.extract::<(usize, usize)>()
+        .map_err(|_| value_error(name, format!("expected an int k or a pair (k_X, k_Y) of sizes, got {obj}")))
+}
+
+fn check_sizes(kx: usize, ky: usize, x: &PreparedShape, y: &PreparedShape, name: &str) -> PyResult<()> {
+    if kx == 0 || ky == 0 || kx > x.basis.k() || ky > y.basis.k() {
+        let got = if kx == ky { format!("{kx}") } else { format!("({kx}, {ky})") };
+        return Err(value_error(
+            name,
+            format!("{got}: need 1 ≤ k ≤ the basis sizes (X has {}, Y {})", x.basis.k(), y.basis.k()),
         ));
     }
     Ok(())
@@ -201,7 +295,7 @@ fn check_c_fits(c: &Mat<f64>, x: &PreparedShape, y: &PreparedShape, name: &str) 
 
 type MapOut<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<i64>>);
 
-/// ICP refinement (Ovsjanikov et al. 2012) of C (k × k, X → Y coefficients).
+/// ICP refinement (Ovsjanikov et al. 2012) of C (k_Y × k_X, X → Y coefficients).
 #[pyfunction]
 #[pyo3(signature = (x, y, c, iterations=10))]
 fn icp_refine<'py>(
@@ -214,9 +308,13 @@ fn icp_refine<'py>(
     let (px, py_) = (prepared_arg(x, "X")?, prepared_arg(y, "Y")?);
     let c = fmap_arg(c, "C")?;
     check_c_fits(&c, &px, &py_, "C")?;
+    let s = unit_scale(&px, &py_);
     let (c, map) = compute(py, move || {
         let o = funcorr::pointwise::IcpOptions { max_iterations: iterations };
-        funcorr::pointwise::icp(px.basis.eigenvectors.as_ref(), py_.basis.eigenvectors.as_ref(), c.as_ref(), &o)
+        let c = scaled(c, 1.0 / s);
+        let (c, map) =
+            funcorr::pointwise::icp(px.basis.eigenvectors.as_ref(), py_.basis.eigenvectors.as_ref(), c.as_ref(), &o)?;
+        Ok((scaled(c, s), map))
     })?;
     Ok((arrays::mat_out(py, c.as_ref()), arrays::index_out(py, &map)))
 }
@@ -233,7 +331,7 @@ fn zoomout_refine<'py>(
     step: usize,
 ) -> PyResult<MapOut<'py>> {
     let (px, py_) = (prepared_arg(x, "X")?, prepared_arg(y, "Y")?);
-    let c = fmap_arg(c, "C")?;
+    let c = square_fmap_arg(c, "C")?;
     check_c_fits(&c, &px, &py_, "C")?;
     if k_final < c.nrows() || k_final > px.basis.k().min(py_.basis.k()) {
         return Err(value_error(
@@ -244,76 +342,86 @@ fn zoomout_refine<'py>(
     if step == 0 {
         return Err(value_error("step", "must be at least 1"));
     }
+    let s = unit_scale(&px, &py_);
     let (c, map) = compute(py, move || {
         let o = funcorr::pointwise::ZoomOutOptions { k_final, step };
-        funcorr::pointwise::zoomout(
+        let c = scaled(c, 1.0 / s);
+        let (c, map) = funcorr::pointwise::zoomout(
             px.basis.eigenvectors.as_ref(),
             py_.basis.eigenvectors.as_ref(),
             &py_.basis.mass,
             c.as_ref(),
             &o,
-        )
+        )?;
+        Ok((scaled(c, s), map))
     })?;
     Ok((arrays::mat_out(py, c.as_ref()), arrays::index_out(py, &map)))
 }
 
-/// Point maps of a functional map C (k × k, X → Y coefficients): (map_xy, map_yx).
+/// Point maps of a functional map C (k_Y × k_X, X → Y coefficients): (map_xy, map_yx); with
+/// `adjoint`, map_yx by the adjoint (rows of Ψ C matched to rows of Φ).
 #[pyfunction]
+#[pyo3(signature = (x, y, c, adjoint=false))]
 fn maps_from_fmap<'py>(
     py: Python<'py>,
     x: &Bound<'py, PyAny>,
     y: &Bound<'py, PyAny>,
     c: &Bound<'py, PyAny>,
+    adjoint: bool,
 ) -> PyResult<(I64s<'py>, I64s<'py>)> {
     let (px, py_) = (prepared_arg(x, "X")?, prepared_arg(y, "Y")?);
     let c = fmap_arg(c, "C")?;
     check_c_fits(&c, &px, &py_, "C")?;
+    let s = unit_scale(&px, &py_);
     let (a, b) = compute(py, move || {
+        let c = scaled(c, 1.0 / s);
         let (phi, psi) = (px.basis.eigenvectors.as_ref(), py_.basis.eigenvectors.as_ref());
-        Ok((
-            funcorr::pointwise::map_from_fmap(phi, psi, c.as_ref())?,
-            funcorr::pointwise::map_yx_from_fmap(phi, psi, c.as_ref())?,
-        ))
+        let map_yx = if adjoint {
+            funcorr::pointwise::map_yx_from_fmap_adjoint(phi, psi, c.as_ref())?
+        } else {
+            funcorr::pointwise::map_yx_from_fmap(phi, psi, c.as_ref())?
+        };
+        Ok((funcorr::pointwise::map_from_fmap(phi, psi, c.as_ref())?, map_yx))
     })?;
     Ok((arrays::index_out(py, &a), arrays::index_out(py, &b)))
 }
 
-/// The functional map C (k × k, X → Y coefficients) of a point map Y → X:
-/// C = Ψ_kᵀ A_Y Π Φ_k.
+/// The functional map C (k_Y × k_X, X → Y coefficients) of a point map Y → X:
+/// C = Ψ_{k_Y}ᵀ A_Y Π Φ_{k_X}; `k` an int (square) or (k_X, k_Y).
 #[pyfunction]
 fn fmap_from_map<'py>(
     py: Python<'py>,
     x: &Bound<'py, PyAny>,
     y: &Bound<'py, PyAny>,
     map_yx: &Bound<'py, PyAny>,
-    k: usize,
+    k: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let (px, py_) = (prepared_arg(x, "X")?, prepared_arg(y, "Y")?);
     let map = arrays::indices(map_yx, "map_yx", px.n())?;
     if map.len() != py_.n() {
         return Err(value_error("map_yx", format!("length {} but Y has m = {} vertices", map.len(), py_.n())));
     }
-    if k == 0 || k > px.basis.k().min(py_.basis.k()) {
-        return Err(value_error(
-            "k",
-            format!("{k}: need 1 ≤ k ≤ the basis sizes ({}, {})", px.basis.k(), py_.basis.k()),
-        ));
-    }
+    let (kx, ky) = sizes_arg(k, "k")?;
+    check_sizes(kx, ky, &px, &py_, "k")?;
+    let s = unit_scale(&px, &py_);
     let c = compute(py, move || {
-        funcorr::pointwise::fmap_from_map_yx(
+        let c = funcorr::pointwise::fmap_from_map_yx_sizes(
             px.basis.eigenvectors.as_ref(),
             py_.basis.eigenvectors.as_ref(),
             &py_.basis.mass,
             &map,
-            k,
-        )
+            kx,
+            ky,
+        )?;
+        Ok(scaled(c, s))
     })?;
     Ok(arrays::mat_out(py, c.as_ref()))
 }
 
-/// The axiomatic functional map C (k × k, X → Y coefficients) from descriptors F (n × q) on X
-/// and G (m × q) on Y: the exact minimizer of the energy of `funcorr::fmap::energy` with the
+/// The axiomatic functional map C (k_Y × k_X, X → Y coefficients) from descriptors F (n × q) on
+/// X and G (m × q) on Y: the exact minimizer of the energy of `funcorr::fmap::energy` with the
 /// given weights, mask and orientation, the first column fixed to map constants to constants.
+/// `k`: an int (square) or (k_X, k_Y).
 #[pyfunction]
 #[pyo3(signature = (x, y, f, g, k, w_descr=1.0, w_lap=0.1, w_dcomm=1.0, w_orient=0.0, mask="resolvent", orientation="preserve", fix_constant=true))]
 #[allow(clippy::too_many_arguments)]
@@ -323,7 +431,7 @@ fn axiomatic_fmap<'py>(
     y: &Bound<'py, PyAny>,
     f: &Bound<'py, PyAny>,
     g: &Bound<'py, PyAny>,
-    k: usize,
+    k: &Bound<'py, PyAny>,
     w_descr: f64,
     w_lap: f64,
     w_dcomm: f64,
@@ -332,8 +440,8 @@ fn axiomatic_fmap<'py>(
     orientation: &str,
     fix_constant: bool,
 ) -> PyResult<(Bound<'py, PyArray2<f64>>, f64)> {
-    use funcorr::fmap::axiomatic::{axiomatic, AxiomaticOptions, ShapeData};
-    use funcorr::fmap::energy::{EnergyWeights, Mask, Orientation};
+    use funcorr::fmap::axiomatic::{axiomatic, constant_column, spectral_side, AxiomaticOptions, ShapeData};
+    use funcorr::fmap::energy::{Energy, EnergyWeights, Mask, Orientation};
     let (px, py_) = (prepared_arg(x, "X")?, prepared_arg(y, "Y")?);
     let f = arrays::matrix(f, "F")?;
     let g = arrays::matrix(g, "G")?;
@@ -351,12 +459,8 @@ fn axiomatic_fmap<'py>(
             ),
         ));
     }
-    if k == 0 || k > px.basis.k().min(py_.basis.k()) {
-        return Err(value_error(
-            "k",
-            format!("{k}: need 1 ≤ k ≤ the basis sizes ({}, {})", px.basis.k(), py_.basis.k()),
-        ));
-    }
+    let (kx, ky) = sizes_arg(k, "k")?;
+    check_sizes(kx, ky, &px, &py_, "k")?;
     for (name, w) in [("w_descr", w_descr), ("w_lap", w_lap), ("w_dcomm", w_dcomm), ("w_orient", w_orient)] {
         if !(w.is_finite() && w >= 0.0) {
             return Err(value_error(name, format!("must be finite and ≥ 0, got {w}")));
@@ -375,34 +479,50 @@ fn axiomatic_fmap<'py>(
             return Err(value_error("orientation", format!("{other:?}: expected 'preserve', 'reverse' or 'ignore'")))
         }
     };
-    let opts = AxiomaticOptions {
-        k,
-        weights: EnergyWeights {
-            descriptors: w_descr,
-            laplacian: w_lap,
-            commutativity: w_dcomm,
-            orientation: w_orient,
-        },
-        mask,
-        orientation,
-        fix_constant,
-        unit_gradients: true,
-    };
+    let orient = w_orient > 0.0 && orientation != Orientation::Ignore;
+    for (p, name) in [(&px, "X"), (&py_, "Y")] {
+        if orient && p.triangles().is_none() {
+            return Err(value_error(
+                name,
+                "the orientation term (w_orient > 0) needs a surface: a mesh or 3-D points with the point-cloud Laplacian",
+            ));
+        }
+    }
+    let weights =
+        EnergyWeights { descriptors: w_descr, laplacian: w_lap, commutativity: w_dcomm, orientation: w_orient };
+    let s = unit_scale(&px, &py_);
     let (c, energy) = compute(py, move || {
         let names: Vec<String> = (0..f.ncols()).map(|j| format!("column {j}")).collect();
         let (df, dg) = (Descriptors::new(f, names.clone())?, Descriptors::new(g, names)?);
-        let orient = w_orient > 0.0 && orientation != Orientation::Ignore;
         let (gx, gy) = if orient { (px.gradients(), py_.gradients()) } else { (None, None) };
         let sx = ShapeData { basis: &px.basis, gradients: gx, descriptors: &df };
         let sy = ShapeData { basis: &py_.basis, gradients: gy, descriptors: &dg };
-        let (c, report) = axiomatic(&sx, &sy, &opts)?;
-        Ok((c, report.energy))
+        let (c, energy) = if kx == ky {
+            let opts = AxiomaticOptions { k: kx, weights, mask, orientation, fix_constant, unit_gradients: true };
+            let (c, report) = axiomatic(&sx, &sy, &opts)?;
+            (c, report.energy)
+        } else {
+            // A rectangular map (k_Y × k_X): the same energy on k_X functions of X and k_Y of Y.
+            let (comm, unit) = (w_dcomm > 0.0, true);
+            let a = spectral_side(&sx, kx, comm, orient, unit, "X")?;
+            let b = spectral_side(&sy, ky, comm, orient, unit, "Y")?;
+            let e = Energy::new(&a, &b, &weights, mask, orientation)?;
+            let c = if fix_constant {
+                e.solve_with_first_column(&constant_column(&px.basis, &py_.basis, ky))?
+            } else {
+                e.solve()?
+            };
+            let v = e.value(c.as_ref());
+            (c, v)
+        };
+        Ok((scaled(c, s), energy))
     })?;
     Ok((arrays::mat_out(py, c.as_ref()), energy))
 }
 
 /// The soft map T δ_i of vertex i of X (a function on Y, length m) of a functional map C
-/// (k × k, X → Y coefficients): Ψ_k C Φ_kᵀ A_X δ_i, up to the mass of vertex i.
+/// (k_Y × k_X, X → Y coefficients, between the shapes' own bases, as `funcorr match --soft`):
+/// Ψ C Φ(i)ᵀ, up to the mass of vertex i.
 #[pyfunction]
 fn soft_map<'py>(
     py: Python<'py>,
@@ -411,19 +531,16 @@ fn soft_map<'py>(
     c: &Bound<'py, PyAny>,
     i: usize,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let (px, py_) = (prepared_arg(x, "X")?, prepared_arg(y, "Y")?);
+    let (xb, yb) = (prepared_py(x, "X")?, prepared_py(y, "Y")?);
+    let (px, py_) = (xb.get().inner.clone(), yb.get().inner.clone());
     let c = fmap_arg(c, "C")?;
     check_c_fits(&c, &px, &py_, "C")?;
     if i >= px.n() {
         return Err(value_error("i", format!("vertex {i} of X does not exist (n = {})", px.n())));
     }
+    let (bx, by) = (xb.get().input_basis().clone(), yb.get().input_basis().clone());
     let t = compute(py, move || {
-        funcorr::pointwise::soft_map_column(
-            px.basis.eigenvectors.as_ref(),
-            py_.basis.eigenvectors.as_ref(),
-            c.as_ref(),
-            i,
-        )
+        funcorr::pointwise::soft_map_column(bx.eigenvectors.as_ref(), by.eigenvectors.as_ref(), c.as_ref(), i)
     })?;
     Ok(arrays::vec_out(py, t))
 }

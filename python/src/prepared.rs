@@ -1,7 +1,7 @@
 //! Prepared shapes (shape + Laplacian + eigenbasis; picklable, so that Ray can keep them in its
 //! object store), `prepare`, and the shape, basis and mesh arguments of the other functions.
 
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use numpy::{PyArray1, PyArray2};
 use pyo3::exceptions::PyValueError;
@@ -18,10 +18,29 @@ use crate::{compute, options};
 /// A shape with its Laplacian and its first k eigenpairs, computed once and reused by every
 /// pair it takes part in (`funcorr.prepare`). Pickles to its geometry and basis (the Laplacian
 /// is rebuilt on unpickling, bit for bit), so it can be put in Ray's object store.
+///
+/// Units: the library's [`PreparedShape`] is the shape scaled to unit area (what matching
+/// computes on); Python shows the basis in the shape's own units (λ / area, φ / √area,
+/// A · area: `PreparedShape::input_basis`, computed on first access and kept), as
+/// `cotangent_laplacian` and pyFM give it. Functional maps in and out of the bindings are
+/// between these input bases (as `match`'s C).
 #[pyclass(frozen, module = "funcorr._funcorr", name = "PreparedShape")]
 pub(crate) struct PyPrepared {
     pub(crate) inner: Arc<PreparedShape>,
     pub(crate) choice: LaplacianChoice,
+    /// The basis in the input's units (on first use).
+    input: OnceLock<Basis>,
+}
+
+impl PyPrepared {
+    pub(crate) fn new(inner: Arc<PreparedShape>, choice: LaplacianChoice) -> Self {
+        PyPrepared { inner, choice, input: OnceLock::new() }
+    }
+
+    /// The basis in the shape's own units (computed once).
+    pub(crate) fn input_basis(&self) -> &Basis {
+        self.input.get_or_init(|| self.inner.input_basis())
+    }
 }
 
 #[pymethods]
@@ -52,19 +71,19 @@ impl PyPrepared {
             Shape::Points(_) => arrays::faces_out(py, &[]),
         }
     }
-    /// λ₁ ≤ … ≤ λ_k (read-only view of the shape's data, no copy).
+    /// λ₁ ≤ … ≤ λ_k in the shape's units (1 / area; read-only view, no copy).
     #[getter]
     fn eigenvalues<'py>(this: Bound<'py, Self>) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let v = numpy::ndarray::ArrayView1::from(&this.get().inner.basis.eigenvalues[..]);
-        // SAFETY: the basis lives in an Arc owned by `this`, never mutated nor reallocated; the
-        // array keeps `this` alive as its base, and is made read-only.
+        let v = numpy::ndarray::ArrayView1::from(&this.get().input_basis().eigenvalues[..]);
+        // SAFETY: the basis lives in a OnceLock owned by `this`, never mutated nor reallocated
+        // once set; the array keeps `this` alive as its base, and is made read-only.
         readonly(unsafe { PyArray1::borrow_from_array(&v, this.clone().into_any()) })
     }
-    /// Φ (n × k), Φᵀ diag(A) Φ = I (read-only view of the shape's data, Fortran order, no copy).
+    /// Φ (n × k), Φᵀ diag(A) Φ = I with A = `mass` (read-only view, Fortran order, no copy).
     #[getter]
     fn eigenvectors<'py>(this: Bound<'py, Self>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         use numpy::ndarray::ShapeBuilder;
-        let m = this.get().inner.basis.eigenvectors.as_ref();
+        let m = this.get().input_basis().eigenvectors.as_ref();
         let (rs, cs) = (m.row_stride(), m.col_stride());
         if rs < 0 || cs < 0 {
             return Ok(arrays::mat_out(this.py(), m));
@@ -79,12 +98,18 @@ impl PyPrepared {
         };
         readonly(unsafe { PyArray2::borrow_from_array(&view, this.clone().into_any()) })
     }
-    /// A (n): the vertex weights (lumped mass; read-only view, no copy).
+    /// A (n): the vertex weights in the shape's units (lumped mass, area²; read-only view).
     #[getter]
     fn mass<'py>(this: Bound<'py, Self>) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let v = numpy::ndarray::ArrayView1::from(&this.get().inner.basis.mass[..]);
+        let v = numpy::ndarray::ArrayView1::from(&this.get().input_basis().mass[..]);
         // SAFETY: as in `eigenvalues`.
         readonly(unsafe { PyArray1::borrow_from_array(&v, this.clone().into_any()) })
+    }
+    /// Σ A: the total vertex weight (a mesh's area) in the shape's units. Matching works on the
+    /// shape scaled to unit area (eigenvalues · area, eigenvectors · √area, mass / area).
+    #[getter]
+    fn area(&self) -> f64 {
+        self.inner.area
     }
     /// The stiffness matrix W as CSR parts (indptr, indices, data) (W is symmetric).
     fn _stiffness<'py>(&self, py: Python<'py>) -> (I64s<'py>, I64s<'py>, F64s<'py>) {
@@ -141,7 +166,8 @@ fn point_set_out<'py>(py: Python<'py>, p: &PointSet) -> Bound<'py, PyArray2<f64>
 }
 
 /// Rebuilds a pickled [`PyPrepared`]: the shape, its Laplacian (recomputed, deterministic) and
-/// the stored basis.
+/// the stored basis (at unit area, as `PreparedShape` holds it, so that nothing is rescaled and
+/// the shape comes back bit for bit).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 fn _prepared_from_state(
@@ -160,20 +186,35 @@ fn _prepared_from_state(
         Shape::Mesh(arrays::mesh(points, faces, "vertices", "faces")?)
     };
     let choice: LaplacianChoice = serde_json::from_str(choice).map_err(|e| value_error("choice", e))?;
-    let basis = Basis {
+    let unit = Basis {
         eigenvalues: arrays::vector(eigenvalues, "eigenvalues")?,
         eigenvectors: arrays::matrix(eigenvectors, "eigenvectors")?,
         mass: arrays::vector(mass, "mass")?,
         residuals: arrays::vector(residuals, "residuals")?,
     };
-    if basis.n() != shape.n_vertices() || basis.mass.len() != basis.n() || basis.eigenvalues.len() != basis.k() {
+    if unit.n() != shape.n_vertices() || unit.mass.len() != unit.n() || unit.eigenvalues.len() != unit.k() {
         return Err(value_error("eigenvectors", "the basis does not fit the shape"));
     }
     let p = compute(py, move || {
         let (lap, surface) = funcorr::prepared::build_laplacian(&shape, choice)?;
-        Ok(PreparedShape::from_parts(shape, lap, basis, surface))
+        // `from_parts` scales a basis in the input's units to unit area, with the area Σ A of
+        // its mass: given the rebuilt Laplacian's own mass (as when the shape was prepared),
+        // the area, the unit-area Laplacian and surface come out as before; the stored
+        // unit-area eigenpairs then replace the placeholder ones unchanged.
+        let placeholder = Basis {
+            eigenvalues: vec![],
+            eigenvectors: faer::Mat::zeros(unit.n(), 0),
+            mass: lap.mass.clone(),
+            residuals: vec![],
+        };
+        let mut p = PreparedShape::from_parts(shape, lap, placeholder, surface);
+        if p.basis.mass != unit.mass {
+            return Err(funcorr::Error::invalid("mass", "the pickled basis does not fit the shape's Laplacian"));
+        }
+        p.basis = unit;
+        Ok(p)
     })?;
-    Ok(PyPrepared { inner: Arc::new(p), choice })
+    Ok(PyPrepared::new(Arc::new(p), choice))
 }
 
 /// Laplacian options of `prepare` and `match`, read from a dict (keys `laplacian`,
@@ -188,6 +229,7 @@ pub(crate) fn laplacian_choice(opts: &mut options::Opts) -> PyResult<LaplacianCh
     Ok(match kind.as_deref().unwrap_or("auto") {
         "auto" => LaplacianChoice::Auto,
         "cotan" | "cotangent" => LaplacianChoice::Cotangent,
+        "intrinsic" => LaplacianChoice::Intrinsic,
         "cloud" => LaplacianChoice::Cloud { k: cloud_k },
         "knn" => LaplacianChoice::Knn(KnnOptions {
             k: knn_k,
@@ -201,7 +243,10 @@ pub(crate) fn laplacian_choice(opts: &mut options::Opts) -> PyResult<LaplacianCh
             bandwidth: sigma.map_or(Bandwidth::SelfTuning, Bandwidth::Fixed),
         }),
         other => {
-            return Err(value_error("laplacian", format!("{other:?}: expected 'auto', 'cotan', 'cloud' or 'knn'")))
+            return Err(value_error(
+                "laplacian",
+                format!("{other:?}: expected 'auto', 'cotan', 'intrinsic', 'cloud' or 'knn'"),
+            ))
         }
     })
 }
@@ -232,14 +277,16 @@ pub(crate) fn check_k(shape: &Shape, k: usize, name: &str, what: &str) -> PyResu
     Ok(())
 }
 
-/// `prepare(shape, k, cache_dir, **laplacian options)`.
+/// `prepare(shape, k, cache_dir, progress, **laplacian options)`; `progress` a callable
+/// `(stage, done, total)` or None.
 #[pyfunction]
-#[pyo3(signature = (shape, k=200, cache_dir=None, **kwargs))]
+#[pyo3(signature = (shape, k=200, cache_dir=None, progress=None, **kwargs))]
 fn prepare(
     py: Python<'_>,
     shape: &Bound<'_, PyAny>,
     k: usize,
     cache_dir: Option<&Bound<'_, PyAny>>,
+    progress: Option<&Bound<'_, PyAny>>,
     kwargs: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<PyPrepared> {
     let mut opts = options::Opts::new(kwargs)?;
@@ -248,20 +295,26 @@ fn prepare(
     let cache = cache_arg(cache_dir)?;
     let s = arrays::shape(shape, "shape")?;
     check_k(&s, k, "k", "k")?;
-    let p = compute(py, move || PreparedShape::new(s, choice, k, cache.as_ref()))?;
-    Ok(PyPrepared { inner: Arc::new(p), choice })
+    let p = crate::compute_reporting(py, progress, move || PreparedShape::new(s, choice, k, cache.as_ref()))?;
+    Ok(PyPrepared::new(Arc::new(p), choice))
 }
 
 pub(crate) fn prepared_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Arc<PreparedShape>> {
+    prepared_py(obj, name).map(|p| p.get().inner.clone())
+}
+
+/// A PreparedShape argument as the Python object (for its basis in input units).
+pub(crate) fn prepared_py<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Bound<'py, PyPrepared>> {
     obj.cast::<PyPrepared>()
-        .map(|p| p.get().inner.clone())
+        .cloned()
         .map_err(|_| value_error(name, "expected a PreparedShape (funcorr.prepare(shape, k))"))
 }
 
-/// A basis argument: a PreparedShape or a tuple (eigenvalues, eigenvectors, mass).
+/// A basis argument: a PreparedShape (its basis in the shape's units, as its `eigenvalues`,
+/// `eigenvectors` and `mass` show it) or a tuple (eigenvalues, eigenvectors, mass).
 pub(crate) fn basis_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Basis> {
     if let Ok(p) = obj.cast::<PyPrepared>() {
-        return Ok(p.get().inner.basis.clone());
+        return Ok(p.get().input_basis().clone());
     }
     let t = obj
         .cast::<PyTuple>()

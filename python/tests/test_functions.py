@@ -219,7 +219,10 @@ def test_match_fmap_zoomout_icp_and_maps(prepared_pair, ground_truth):
     assert np.array_equal(a, r.map_xy) and np.array_equal(b, r.map_yx)
     before = funcorr.evaluate(r.map_xy, Y, gx, gy, gs)["mean"]
     C_icp, m_icp = funcorr.icp_refine(X, Y, r.C, iterations=5)
-    assert C_icp.shape == (30, 30) and np.allclose(C_icp @ C_icp.T, np.eye(30), atol=1e-9)
+    # Orthonormal between the unit-area bases: in the shapes' units C = √(area_Y / area_X) · Q.
+    s = np.sqrt(Y.area / X.area)
+    assert C_icp.shape == (30, 30) and np.allclose(C_icp @ C_icp.T, s**2 * np.eye(30), atol=1e-9)
+    assert np.isclose(abs(r.C[0, 0]), s, rtol=1e-6) and np.isclose(X.area, X.mass.sum())
     C_zo, m_zo = funcorr.zoomout_refine(X, Y, r.C, k_final=60, step=5)
     assert C_zo.shape == (60, 60)
     after = funcorr.evaluate(m_zo, Y, gx, gy, gs)["mean"]

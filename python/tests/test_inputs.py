@@ -136,8 +136,9 @@ def test_index_arguments_are_checked(prepared_pair, mesh_y):
     with pytest.raises(ValueError, match="map_yx: length 10 but Y has m = 5000"):
         funcorr.render_pair(X, Y, np.zeros(10, dtype=np.int64))
     with pytest.raises(ValueError, match="C: expected a square"):
-        funcorr.icp_refine(X, Y, np.eye(10)[:, :5])
-    with pytest.raises(ValueError, match="C: a 70 × 70 map needs 70 eigenpairs"):
+        funcorr.zoomout_refine(X, Y, np.eye(10)[:, :5], k_final=20)
+    assert funcorr.icp_refine(X, Y, np.eye(10)[:, :5])[0].shape == (10, 5)  # k_Y × k_X maps
+    with pytest.raises(ValueError, match="C: a 70 × 70 map \\(k_Y × k_X\\) needs 70 eigenpairs on X"):
         funcorr.icp_refine(X, Y, np.eye(70))
     with pytest.raises(ValueError, match="X: expected a PreparedShape"):
         funcorr.icp_refine(mesh_y, Y, np.eye(10))
@@ -172,3 +173,39 @@ def test_thread_count_setting(monkeypatch):
             funcorr.cotangent_laplacian(*small_mesh())
     finally:
         funcorr.set_num_threads(None)
+
+
+def test_shape_arguments_name_the_shape_and_the_expected_array():
+    V, F = funcorr.read_mesh(X_PATH)
+    flat = V[:, :2]
+    for args, name in (((flat, X_PATH), "X"), ((X_PATH, flat), "Y")):
+        with pytest.raises(ValueError) as e:
+            funcorr.match(*args)
+        msg = str(e.value)
+        assert msg.startswith(f"{name}: ") and "(n, 3)" in msg and "(4999, 2)" in msg, msg
+    # 2-D points stay usable where no surface is needed.
+    P = funcorr.prepare(flat[:300], k=5)
+    assert P.n == 300 and not P.is_mesh
+
+
+def test_thread_counts_are_value_errors():
+    for bad in (-1, 2.5, "4", True, 1 << 40):
+        with pytest.raises(ValueError, match="n: expected a number of threads"):
+            funcorr.set_num_threads(bad)
+    funcorr.set_num_threads(None)
+
+
+def test_the_namespace_holds_the_api():
+    public = {n for n in dir(funcorr) if not n.startswith("_")}
+    assert not public & {"np", "json", "Dict", "Any", "Optional", "dataclass", "field", "annotations", "TYPE_CHECKING"}
+    assert set(funcorr.__all__) <= public
+    assert public - set(funcorr.__all__) <= {"batch", "compat"}
+
+
+def test_results_have_a_short_repr(default_match, ground_truth):
+    r = default_match
+    text = repr(r)
+    assert len(text) < 160 and "axiomatic" in text and "n=4999" in text and "m=5000" in text, text
+    r.evaluate(*ground_truth)
+    assert "mean error ×100" in repr(r)
+    assert len(repr(r.X)) < 80

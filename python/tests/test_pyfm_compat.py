@@ -99,22 +99,30 @@ def test_compat_conventions_agree_with_funcorr():
     import funcorr
     from funcorr.compat.pyfm import FunctionalMapping, TriMesh
 
-    model = FunctionalMapping(TriMesh(str(X_PATH)), TriMesh(str(Y_PATH)))
+    mesh1, mesh2 = TriMesh(str(X_PATH)), TriMesh(str(Y_PATH))
+    model = FunctionalMapping(mesh1, mesh2)
     model.preprocess(n_ev=(30, 30), n_descr=50, subsample_step=2)
     model.fit(w_descr=1, w_lap=1e-2, w_dcomm=1e-1)
-    # FM maps mesh1 → mesh2 (funcorr's C with X = mesh1), p2p_21 is funcorr's map_yx.
+    # FM maps mesh1 → mesh2 (funcorr's C with X = mesh1, in the meshes' units: C[0, 0] is
+    # ±√(area2 / area1)), p2p_21 is funcorr's map_yx. pyFM's search reads FM between the meshes'
+    # own bases, funcorr's between unit-area ones: the same on meshes of equal area (pyFM's
+    # area_normalize), up to ties.
     X, Y = model.mesh1._prepared, model.mesh2._prepared
-    map_xy, map_yx = funcorr.maps_from_fmap(X, Y, model.FM)
-    assert np.array_equal(model.p2p_21, map_yx) and len(map_xy) == 4999
-    with pytest.raises(ValueError, match="n_ev"):
-        FunctionalMapping(TriMesh(str(X_PATH)), TriMesh(str(Y_PATH))).preprocess(n_ev=(20, 30)).fit()
+    assert np.isclose(abs(model.FM[0, 0]), np.sqrt(mesh2.area / mesh1.area), rtol=1e-6)
+    same = FunctionalMapping(TriMesh(str(X_PATH), area_normalize=True), TriMesh(str(Y_PATH), area_normalize=True))
+    same.preprocess(n_ev=(30, 30), n_descr=50, subsample_step=2).fit(w_descr=1, w_lap=1e-2, w_dcomm=1e-1)
+    map_xy, map_yx = funcorr.maps_from_fmap(same.mesh1._prepared, same.mesh2._prepared, same.FM)
+    assert np.mean(same.p2p_21 == map_yx) > 0.999 and len(map_xy) == 4999
+    # Non-square maps (pyFM's n_ev=(k1, k2)): FM_12 is k2 × k1.
+    rect = FunctionalMapping(TriMesh(str(X_PATH)), TriMesh(str(Y_PATH))).preprocess(n_ev=(20, 30), n_descr=50)
+    assert rect.fit().FM.shape == (30, 20)
     with pytest.raises(ValueError, match="optinit"):
         model.fit(optinit="ones")
 
 
 def test_pyfm_13_workflow():
     """The workflow of pyFM 1.3 (FunctionalMapping's docstring in pyfmaps 1.3.1): the size given
-    to fit(K=...), FM_12, refinements returned, get_p2p(FM)."""
+    to fit(K=...), FM_12, refinements returned and FM_12 kept, get_p2p(FM)."""
     from funcorr.compat.pyfm import FunctionalMapping, TriMesh
 
     mesh1 = TriMesh.load(str(X_PATH), area_normalize=True, center=True)
@@ -134,7 +142,10 @@ def test_pyfm_13_workflow():
     for p in (p2p, p2p_icp, p2p_zo):
         assert p.shape == (5000,) and p.max() < 4999
     assert not np.array_equal(p2p, p2p_zo)
-    # pyFM < 1.3: refinements become the current map (FM_type), positional zoomout_refine(nit, step).
-    assert model.FM_type == "zoomout" and model.FM.shape == (90, 90)
+    # pyFM 1.3: get_p2p() reads FM_12, whatever was refined.
+    assert np.array_equal(model.get_p2p(), p2p)
+    # The earlier API in the same model: refinements become the current map (FM_type),
+    # positional zoomout_refine(nit, step).
     model.change_FM_type("classic")
-    assert model.zoomout_refine(4, 5).shape == (60, 60)
+    assert model.zoomout_refine(4, 5).shape == (60, 60) and model.FM_type == "zoomout"
+    assert model.FM.shape == (60, 60)

@@ -167,6 +167,7 @@ pub fn axiomatic_sizes(
     let sy = spectral_side(y, k, comm, orient, opts.unit_gradients, "Y")?;
     ks.par_iter()
         .map(|&k| {
+            crate::progress::check()?;
             let (sx, sy) = (sx.leading(k), sy.leading(k));
             let energy = Energy::new(&sx, &sy, w, opts.mask, opts.orientation)?;
             let c = if opts.fix_constant {

@@ -581,11 +581,15 @@ impl ExactGeodesics {
             .map_init(
                 || Work::new(&self.topo),
                 |work, &s| {
+                    if crate::progress::cancelled() {
+                        return Vec::new(); // discarded: the check below fails
+                    }
                     work.solve(&self.topo, s, &[]);
                     work.dist.clone()
                 },
             )
             .collect();
+        crate::progress::check()?;
         Ok(faer::Mat::from_fn(self.topo.n, sources.len(), |i, j| cols[j][i]))
     }
 
@@ -636,6 +640,9 @@ impl ExactGeodesics {
             .map_init(
                 || (Work::new(&self.topo), Vec::new()),
                 |(work, targets), group| {
+                    if crate::progress::cancelled() {
+                        return Vec::new(); // discarded: the check below fails
+                    }
                     let s = oriented[group[0]].0;
                     targets.clear();
                     targets.extend(group.iter().map(|&i| (oriented[i].1, caps[i])));
@@ -644,6 +651,7 @@ impl ExactGeodesics {
                 },
             )
             .collect();
+        crate::progress::check()?;
         let mut out = vec![0.0; pairs.len()];
         for (i, d) in results.into_iter().flatten() {
             out[i] = d;

@@ -234,11 +234,15 @@ impl GraphGeodesics {
             .map_init(
                 || self.work(),
                 |w, &s| {
+                    if crate::progress::cancelled() {
+                        return Vec::new(); // discarded: the check below fails
+                    }
                     self.solve(w, s, &[]);
                     w.dist.clone()
                 },
             )
             .collect();
+        crate::progress::check()?;
         Ok(faer::Mat::from_fn(self.n(), sources.len(), |i, j| cols[j][i]))
     }
 
@@ -263,6 +267,9 @@ impl GraphGeodesics {
             .map_init(
                 || (self.work(), Vec::new()),
                 |(w, targets), group| {
+                    if crate::progress::cancelled() {
+                        return Vec::new(); // discarded: the check below fails
+                    }
                     targets.clear();
                     targets.extend(group.iter().map(|&i| (pairs[i].1, caps[i])));
                     self.solve(w, pairs[group[0]].0, targets);
@@ -270,6 +277,7 @@ impl GraphGeodesics {
                 },
             )
             .collect();
+        crate::progress::check()?;
         let mut out = vec![0.0; pairs.len()];
         for (i, d) in results.into_iter().flatten() {
             out[i] = d;

@@ -141,6 +141,7 @@ impl HeatGeodesics {
         let mut out = Mat::<f64>::zeros(self.n, sources.len());
         const BLOCK: usize = 32;
         for (b, chunk) in sources.chunks(BLOCK).enumerate() {
+            crate::progress::check()?;
             // 1. Heat flow.
             let mut u = Mat::<f64>::zeros(self.n, chunk.len());
             for (j, &s) in chunk.iter().enumerate() {

@@ -12,10 +12,15 @@
 //! Vertices are those of the mesh; edges may come to join the same pair of vertices twice (an
 //! intrinsic triangulation need not be a simplicial complex), so edges are identified by index,
 //! never by their endpoints. Boundary and non-manifold edges are never flipped.
+//!
+//! Besides the heat method, [`intrinsic_delaunay_laplacian`] gives the cotangent Laplacian of
+//! this triangulation as a Laplacian of its own (`LaplacianChoice::Intrinsic`, `--laplacian
+//! intrinsic`): for meshes with obtuse or sliver triangles, where the ordinary cotangent weights
+//! go negative.
 
 use super::topology::{edge_records, place};
 use crate::error::Result;
-use crate::laplacian::{cotangent_from_lengths, heron, mollified_lengths, Laplacian};
+use crate::laplacian::{cotangent_from_lengths, heron, mollified_lengths, Laplacian, LaplacianKind};
 use crate::shape::TriMesh;
 
 /// Sum of the cotangents of the two angles opposite an edge below which it is flipped. Zero in
@@ -254,10 +259,78 @@ impl IntrinsicTriangulation {
     }
 }
 
+/// The intrinsic Delaunay Laplacian of a mesh (Bobenko & Springborn 2007): the cotangent
+/// Laplacian (weights ½(cot α + cot β), barycentric lumped mass) of the mesh's intrinsic
+/// Delaunay triangulation, the same surface re-triangulated by intrinsic edge flips. Every
+/// weight of an interior edge is ≥ 0 (a maximum principle holds), the total mass is the mesh's
+/// area, and on a mesh that is already Delaunay it equals [`crate::laplacian::cotangent`]
+/// exactly. Degenerate triangles are mollified as there. Kind
+/// [`LaplacianKind::IntrinsicDelaunay`].
+///
+/// Errors: those of [`crate::laplacian::cotangent`] (no triangle with area, vertices in no
+/// triangle).
+pub fn intrinsic_delaunay_laplacian(mesh: &TriMesh) -> Result<Laplacian> {
+    let mut lap = IntrinsicTriangulation::delaunay(mesh)?.laplacian()?;
+    lap.kind = LaplacianKind::IntrinsicDelaunay;
+    Ok(lap)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::primitives::{icosphere, rectangle, sheared_grid};
+
+    /// W as sorted (row, column, value) triplets.
+    fn triplets(lap: &Laplacian) -> Vec<(usize, usize, f64)> {
+        let w = lap.w.as_ref();
+        let (cp, ri, val) = (w.symbolic().col_ptr(), w.symbolic().row_idx(), w.val());
+        let mut t: Vec<(usize, usize, f64)> =
+            (0..lap.n()).flat_map(|c| (cp[c]..cp[c + 1]).map(move |p| (ri[p], c, val[p]))).collect();
+        t.sort_by_key(|a| (a.0, a.1));
+        t
+    }
+
+    #[test]
+    fn the_intrinsic_laplacian_is_the_cotangent_one_on_delaunay_meshes() {
+        for mesh in [icosphere(3), rectangle(2.0, 1.0, 10, 7)] {
+            let (a, b) = (intrinsic_delaunay_laplacian(&mesh).unwrap(), crate::laplacian::cotangent(&mesh).unwrap());
+            assert_eq!(a.kind, LaplacianKind::IntrinsicDelaunay);
+            assert_eq!(a.mass, b.mass);
+            assert_eq!(triplets(&a), triplets(&b));
+        }
+    }
+
+    #[test]
+    fn the_intrinsic_laplacian_of_obtuse_triangles_is_that_of_the_delaunay_mesh() {
+        // Every triangle of the sheared grid is obtuse (cells cut along their long diagonal):
+        // the cotangent Laplacian has negative weights. The same parallelogram cut along the
+        // short diagonals is Delaunay (acute triangles); the intrinsic Laplacian of the first
+        // is the cotangent Laplacian of the second.
+        let (nx, ny, s) = (12u32, 8u32, 0.8);
+        let obtuse = sheared_grid(nx, ny, s);
+        let cot = crate::laplacian::cotangent(&obtuse).unwrap();
+        assert!(triplets(&cot).iter().any(|&(i, j, v)| i != j && v > 1e-3), "negative weights expected");
+        let lap = intrinsic_delaunay_laplacian(&obtuse).unwrap();
+        assert!(triplets(&lap).iter().all(|&(i, j, v)| i == j || v <= 1e-12));
+        let id = |i: u32, j: u32| j * (nx + 1) + i;
+        let mut f = Vec::new();
+        for j in 0..ny {
+            for i in 0..nx {
+                f.extend([[id(i, j), id(i + 1, j), id(i, j + 1)], [id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]]);
+            }
+        }
+        let delaunay = TriMesh::new(obtuse.vertices().to_vec(), f).unwrap();
+        let reference = crate::laplacian::cotangent(&delaunay).unwrap();
+        let (a, b) = (triplets(&lap), triplets(&reference));
+        assert_eq!(a.len(), b.len());
+        for (x, y) in a.iter().zip(&b) {
+            assert_eq!((x.0, x.1), (y.0, y.1));
+            assert!((x.2 - y.2).abs() < 1e-12, "{x:?} vs {y:?}");
+        }
+        for (x, y) in lap.mass.iter().zip(&reference.mass) {
+            assert!((x - y).abs() < 1e-12);
+        }
+    }
 
     #[test]
     fn delaunay_meshes_are_left_alone() {

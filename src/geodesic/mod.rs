@@ -50,6 +50,7 @@ pub use distances::Distances;
 pub use exact::ExactGeodesics;
 pub use graph::GraphGeodesics;
 pub use heat::HeatGeodesics;
+pub use intrinsic::intrinsic_delaunay_laplacian;
 
 use crate::error::{Error, Result};
 use crate::shape::TriMesh;

@@ -125,8 +125,12 @@ impl StagedDir {
     /// Returns the published files, relative to the target, sorted.
     ///
     /// Errors: [`Error::Io`] naming the file that could not be moved or deleted; the manifest
-    /// is then absent, which marks the directory as incomplete.
+    /// is then absent, which marks the directory as incomplete. [`Error::Cancelled`] when the
+    /// computation was cancelled ([`crate::progress`]): nothing is published.
     pub fn publish(mut self) -> Result<Vec<String>> {
+        // A run cancelled before publishing publishes nothing (dropping `self` removes the
+        // staging directory); once the publish has begun it is not interrupted.
+        crate::progress::check()?;
         let files = staged_files(&self.staging)?;
         let root = Dir::open(&self.target)?;
         let lock = beneath::open_lock(&self.target.join(LOCK))?;

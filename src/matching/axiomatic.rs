@@ -303,6 +303,7 @@ pub fn axiomatic_pipeline(
     }
     let mut stages = Vec::new();
     let t = std::time::Instant::now();
+    crate::progress::stage("descriptors")?;
     let (fx, gy) = pipeline_data(x, y, f, g, p)?;
     let dx = ShapeData { basis: &x.basis, gradients: x.gradients(), descriptors: &fx };
     let dy = ShapeData { basis: &y.basis, gradients: y.gradients(), descriptors: &gy };
@@ -310,9 +311,11 @@ pub fn axiomatic_pipeline(
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
     // Candidates: C_yx is the map of the energy from Y's data to X's.
     let t = std::time::Instant::now();
+    crate::progress::stage("functional maps")?;
     let fits: Vec<Mat<f64>> = axiomatic_sizes(&dy, &dx, &p.fit, &p.candidates)?.into_iter().map(|r| r.0).collect();
     stages.push(("functional maps".to_string(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
+    crate::progress::stage("search samples")?;
     let probe_samples = samples_of(x, p.probe.samples)?;
     // Large pairs: every search restricted to samples or near the samples' map (NearSearch).
     let near_positions = match (x.positions(), y.positions()) {
@@ -351,6 +354,7 @@ pub fn axiomatic_pipeline(
         stages.push(("search samples".to_string(), t.elapsed().as_secs_f64()));
     }
     let t = std::time::Instant::now();
+    crate::progress::stage("candidate probes")?;
     // Where a probe's map is read: the search samples' one-rings (score and orientation), or
     // without the search on large pairs the probe samples' one-rings, else every vertex.
     let patch: Option<Vec<usize>> = match (&search, tx) {
@@ -392,6 +396,7 @@ pub fn axiomatic_pipeline(
     // distortion becomes one more candidate (its moved samples take their corrected images, the
     // others keep theirs), probed as the others.
     let t = std::time::Instant::now();
+    crate::progress::stage("correction")?;
     let mut correction = None;
     let mut starts: Vec<Mat<f64>> = fits;
     if let Some(s) = &search {
@@ -655,6 +660,7 @@ fn refine_from(
 ) -> Result<(Mat<f64>, Vec<usize>, Option<(Samples, Samples)>)> {
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
     let t = std::time::Instant::now();
+    crate::progress::stage("zoomout")?;
     if p.refine.k_final == 0 {
         let unrefined = (c_fit.clone(), refine::map_of_pullback(phi, psi, c_fit.as_ref(), None, Scope::Exact)?, None);
         stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
@@ -696,6 +702,7 @@ fn refine_from(
         Some(m) if p.polish == 0 => Ok((c, m, None)),
         _ => {
             let t = std::time::Instant::now();
+            crate::progress::stage("polish")?;
             let sy = match sy {
                 Some(sy) => sy,
                 None => samples_of(y, p.refine.samples)?,

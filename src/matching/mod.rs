@@ -335,7 +335,9 @@ impl MatchResult {
 /// Point maps X → Y (length n) and Y → X (length m).
 type MapPair = (Vec<usize>, Vec<usize>);
 
+/// Runs stage `name` (reported to [`crate::progress`], which may cancel it) and records its time.
 fn timed<T>(stages: &mut Vec<(String, f64)>, name: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
+    crate::progress::stage(name)?;
     let t = Instant::now();
     let r = f()?;
     stages.push((name.to_string(), t.elapsed().as_secs_f64()));

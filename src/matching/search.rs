@@ -350,6 +350,7 @@ pub fn correct(
     let mut best = (energy(&start), start.clone());
     let mut trace = vec![anchored_distortion(dx, dy, &start)];
     for _ in 0..rounds {
+        crate::progress::check()?;
         let next = trilaterate(dx, &dy32, dy.nrows(), &best.1, desc, scales);
         if next == best.1 {
             break;

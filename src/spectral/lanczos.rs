@@ -329,6 +329,7 @@ fn lanczos_run(
     loop {
         // Expand the Krylov basis up to pmax columns.
         while p < pmax {
+            crate::progress::check()?;
             let (j0, j1) = (p, p + b);
             op.apply(v.subcols(j0, b), w.as_mut());
             info.operator_applications += b;
@@ -385,6 +386,7 @@ fn lanczos_run(
         if let Some(cb) = progress {
             cb(converged, k);
         }
+        crate::progress::step(converged, k)?;
         if std::env::var_os("FUNCORR_DEBUG_LANCZOS").is_some() {
             let worst = resid.iter().copied().fold(0.0, f64::max);
             eprintln!("restart {} p {p} converged {converged}/{k} worst {worst:.2e} tol {tol:.1e}", info.restarts);
