@@ -16,6 +16,20 @@ fn data(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("data/faust").join(name)
 }
 
+/// The ground truth of X's samples on the bundled pair: for each sample (a vertex of X with
+/// positions `px`) its nearest template point t, and then gt_y[t] (its true image on Y, `m`
+/// vertices) and gt_s[t] (the mirror image of that).
+fn sample_truth(px: &[[f64; 3]], samples: &[usize], m: usize) -> (Vec<usize>, Vec<usize>) {
+    let read = |n: &str, len: usize| read_index_list_file(&data(n), true, len).unwrap();
+    let (gt_x, gt_y, gt_s) =
+        (read("tr_reg_000.vts", px.len()), read("tr_reg_001.vts", m), read("tr_reg_001.sym.vts", m));
+    let template_of = |v: usize| {
+        let d = |t: usize| (0..3).map(|c| (px[gt_x[t]][c] - px[v][c]).powi(2)).sum::<f64>();
+        (0..gt_x.len()).min_by(|&a, &b| d(a).total_cmp(&d(b))).unwrap()
+    };
+    samples.iter().map(|&v| template_of(v)).map(|t| (gt_y[t], gt_s[t])).unzip()
+}
+
 #[test]
 fn the_correction_brings_a_swapped_leg_back() {
     let prep = |n: &str| PreparedShape::new(Shape::load(&data(n)).unwrap(), LaplacianChoice::Auto, 130, None).unwrap();
@@ -24,17 +38,9 @@ fn the_correction_brings_a_swapped_leg_back() {
     let (gx, gy) = (GraphGeodesics::mesh_edges(tx).unwrap(), GraphGeodesics::mesh_edges(ty).unwrap());
     let sx = SampleDistances::new(tx, &x.basis.mass, &gx, 200).unwrap();
     let sy = SampleDistances::new(ty, &y.basis.mass, &gy, 1000).unwrap();
-    // Ground truth: template point t is vertex gt_x[t] of X, gt_y[t] of Y, gt_s[t] its mirror.
-    let read = |n: &str, len: usize| read_index_list_file(&data(n), true, len).unwrap();
-    let (gt_x, gt_y, gt_s) =
-        (read("tr_reg_000.vts", x.n()), read("tr_reg_001.vts", y.n()), read("tr_reg_001.sym.vts", y.n()));
+    // Ground truth of the samples and its mirror image.
     let px = tx.vertices();
-    let template_of = |v: usize| {
-        let d = |t: usize| (0..3).map(|c| (px[gt_x[t]][c] - px[v][c]).powi(2)).sum::<f64>();
-        (0..gt_x.len()).min_by(|&a, &b| d(a).total_cmp(&d(b))).unwrap()
-    };
-    let templates: Vec<usize> = sx.samples.vertices.iter().map(|&v| template_of(v)).collect();
-    let truth: Vec<usize> = templates.iter().map(|&t| gt_y[t]).collect();
+    let (truth, mirrored) = sample_truth(px, &sx.samples.vertices, y.n());
     // One leg: below 40 % of the height, on one side of the body's middle (x ≈ 0.225 on this
     // shape at its own units; the prepared positions are scaled, so compare relative extents).
     let (lo, hi) = tx.bounding_box();
@@ -43,7 +49,7 @@ fn the_correction_brings_a_swapped_leg_back() {
         (p[1] - lo[1]) < 0.4 * (hi[1] - lo[1]) && (p[0] - lo[0]) < 0.5 * (hi[0] - lo[0])
     };
     let swapped: Vec<usize> =
-        sx.samples.vertices.iter().zip(&templates).map(|(&v, &t)| if on_leg(v) { gt_s[t] } else { gt_y[t] }).collect();
+        sx.samples.vertices.iter().enumerate().map(|(i, &v)| if on_leg(v) { mirrored[i] } else { truth[i] }).collect();
     let leg = sx.samples.vertices.iter().filter(|&&v| on_leg(v)).count();
     assert!(leg >= 15, "{leg} samples on the leg");
     let close = |images: &[usize]| {
@@ -84,18 +90,8 @@ fn orientation_tells_the_true_map_from_its_mirror_image() {
     let tx = x.triangles().unwrap();
     let sx = SampleDistances::new(tx, &x.basis.mass, &GraphGeodesics::mesh_edges(tx).unwrap(), 200).unwrap();
     let neighbours = sample_neighbours(&sx, 8);
-    let read = |n: &str, len: usize| read_index_list_file(&data(n), true, len).unwrap();
-    let n_y = ym.n_vertices();
-    let (gt_x, gt_y, gt_s) =
-        (read("tr_reg_000.vts", x.n()), read("tr_reg_001.vts", n_y), read("tr_reg_001.sym.vts", n_y));
     let px = tx.vertices();
-    let template_of = |v: usize| {
-        let d = |t: usize| (0..3).map(|c| (px[gt_x[t]][c] - px[v][c]).powi(2)).sum::<f64>();
-        (0..gt_x.len()).min_by(|&a, &b| d(a).total_cmp(&d(b))).unwrap()
-    };
-    let templates: Vec<usize> = sx.samples.vertices.iter().map(|&v| template_of(v)).collect();
-    let truth: Vec<usize> = templates.iter().map(|&t| gt_y[t]).collect();
-    let mirrored: Vec<usize> = templates.iter().map(|&t| gt_s[t]).collect();
+    let (truth, mirrored) = sample_truth(px, &sx.samples.vertices, ym.n_vertices());
     for (what, y) in [("mesh", prep(Shape::Mesh(ym.clone()))), ("cloud", prep(cloud))] {
         let (py, ny) = (y.positions().unwrap(), y.normals().unwrap());
         let o =
