@@ -21,6 +21,24 @@ pub struct GroundTruth {
 }
 
 impl GroundTruth {
+    /// The ground truth from template lists in which None marks a template point a shape lacks
+    /// (0 in a `.vts` file of a part: [`crate::io::indices::read_template_list`]): the template
+    /// points present on X and on Y (and on the mirrored list of Y, when given) are kept, the
+    /// others left out. Errors: lists of different lengths, no template point left.
+    pub fn from_templates(x: &[Option<usize>], y: &[Option<usize>], y_sym: Option<&[Option<usize>]>) -> Result<Self> {
+        if x.len() != y.len() || y_sym.is_some_and(|s| s.len() != x.len()) {
+            return Err(Error::invalid("ground truth", "the template point lists have different lengths"));
+        }
+        let keep: Vec<usize> = (0..x.len())
+            .filter(|&i| x[i].is_some() && y[i].is_some() && y_sym.is_none_or(|s| s[i].is_some()))
+            .collect();
+        if keep.is_empty() {
+            return Err(Error::invalid("ground truth", "no template point is present on both shapes"));
+        }
+        let pick = |l: &[Option<usize>]| keep.iter().map(|&i| l[i].unwrap_or(0)).collect::<Vec<usize>>();
+        Ok(GroundTruth { x: pick(x), y: pick(y), y_sym: y_sym.map(pick) })
+    }
+
     fn check(&self, n: usize, m: usize) -> Result<()> {
         if self.x.len() != self.y.len()
             || self.y_sym.as_ref().is_some_and(|s| s.len() != self.x.len())

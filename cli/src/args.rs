@@ -379,6 +379,15 @@ pub(crate) struct PipelineArgs {
     /// functional maps with the coupling and bijectivity terms of Ren et al. 2021; 0: none).
     #[arg(long, default_value_t = defaults().axiomatic.polish)]
     pub(crate) polish: usize,
+    /// X is a part of Y (a cut, a scan from one side): match it with the partial path
+    /// (rectangular functional maps, coverage of Y). Without it the axiomatic method detects a
+    /// part by its area (≤ 0.9 of Y's) and boundary length (≥ 0.25 √area(X)); report.json says
+    /// what it found.
+    #[arg(long, conflicts_with = "no_partial")]
+    pub(crate) partial: bool,
+    /// Match X as a whole shape even when it looks like a part of Y (no detection).
+    #[arg(long)]
+    pub(crate) no_partial: bool,
     /// Vertex pairs n·m above which the axiomatic method's final point maps are searched near
     /// the map of its samples instead of exactly (large shapes).
     #[arg(long, default_value_t = defaults().axiomatic.near.above_pairs)]

@@ -133,26 +133,26 @@ pub(crate) fn read_ground_truth(
     n: usize,
     m: usize,
 ) -> Result<funcorr::eval::GroundTruth> {
-    let gt = funcorr::eval::GroundTruth {
-        x: read_index_list_file(source, true, n)?,
-        y: read_index_list_file(target, true, m)?,
-        y_sym: target_sym.map(|p| read_index_list_file(p, true, m)).transpose()?,
-    };
-    let others = [(Some(target), Some(gt.y.len())), (target_sym, gt.y_sym.as_ref().map(Vec::len))];
+    use funcorr::io::indices::read_template_list_file;
+    let (tx, ty) = (read_template_list_file(source, n)?, read_template_list_file(target, m)?);
+    let ts = target_sym.map(|p| read_template_list_file(p, m)).transpose()?;
+    let others = [(Some(target), Some(ty.len())), (target_sym, ts.as_ref().map(Vec::len))];
     for (path, len) in others {
         if let (Some(path), Some(len)) = (path, len) {
-            if len != gt.x.len() {
+            if len != tx.len() {
                 return Err(Error::parse(
                     path,
                     None,
                     format!(
                         "{len} template points, but {} has {} (the files must correspond line by line)",
                         source.display(),
-                        gt.x.len()
+                        tx.len()
                     ),
                 ));
             }
         }
     }
+    // Template points a part lacks (0 in its .vts) are left out.
+    let gt = funcorr::eval::GroundTruth::from_templates(&tx, &ty, ts.as_deref())?;
     Ok(gt)
 }

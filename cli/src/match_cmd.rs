@@ -110,7 +110,19 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     }
     st.parts.extend(stx.parts.into_iter().map(|s| format!("X {s}")));
     st.parts.extend(sty.parts.into_iter().map(|s| format!("Y {s}")));
-    let (f, g) = st.run("data", || pair_data(&args.data, px.parts(), py.parts(), &args.seg))?;
+    // A part of Y (detected or --partial) with the default WKS gets them at the same energies on
+    // both shapes (matching::partial::pair_wks).
+    let partial_wks = opts.method == funcorr::matching::Method::Axiomatic
+        && args.data.parse::<funcorr::descriptors::spec::PairDataSpec>()?
+            == funcorr::descriptors::spec::PairDataSpec::WksRecipe
+        && funcorr::matching::partial::detect(&px, &py, &opts.partial).partial;
+    let (f, g) = st.run("data", || {
+        if partial_wks {
+            funcorr::matching::partial::pair_wks(&px, &py, &funcorr::descriptors::signatures::WksRecipe::default())
+        } else {
+            pair_data(&args.data, px.parts(), py.parts(), &args.seg)
+        }
+    })?;
     let r = funcorr::matching::run_prepared(&px, &py, &f, &g, &opts)?;
     let (x, y) = (&px.shape, &py.shape);
     // The soft maps read C (between the input bases) with the input bases.
@@ -129,6 +141,9 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
             )?;
             let mut soft = Vec::new();
             write_mat_npy(&out.join("C.npy"), &r.c)?;
+            if let Some(cov) = &r.coverage {
+                funcorr::io::npy::write_npy_vec_f64(&out.join("coverage.npy"), cov)?;
+            }
             if r.c_method.nrows() != r.c.nrows() || opts.refine != funcorr::matching::Refine::None {
                 write_mat_npy(&out.join("C_method.npy"), &r.c_method)?;
             }

@@ -383,6 +383,14 @@ pub(crate) fn pipeline_options(
         zoomout_to: p.zoomout_to.unwrap_or(base.zoomout_to),
         zoomout_step: p.zoomout_step.unwrap_or(base.zoomout_step),
         axiomatic,
+        partial: funcorr::matching::partial::PartialOptions {
+            mode: match (p.partial, p.no_partial) {
+                (true, _) => funcorr::matching::partial::PartialMode::Always,
+                (_, true) => funcorr::matching::partial::PartialMode::Never,
+                _ => base.partial.mode,
+            },
+            ..base.partial
+        },
         ..base
     })
 }

@@ -27,7 +27,7 @@ use crate::descriptors::{self as desc, Descriptors};
 use crate::error::{Error, Result};
 use crate::eval::{self, GroundTruth, Summary};
 use crate::geodesic::GeodesicMethod;
-use crate::io::indices::{read_index_list_file, read_labels_file};
+use crate::io::indices::{read_labels_file, read_template_list_file};
 
 use crate::matching::{self, MatchOptions};
 use crate::shape::{Shape, TriMesh};
@@ -133,28 +133,27 @@ impl Dataset {
         })
     }
 
-    /// Template vertices of shape `name` with `n` vertices (0-based): `corres/NAME.vts`, or
-    /// `corres/NAME.sym.vts` when `mirrored`.
-    pub fn template(&self, name: &str, n: usize, mirrored: bool) -> Result<Vec<usize>> {
+    /// Template vertices of shape `name` with `n` vertices (0-based; None where a part lacks the
+    /// template point, 0 in the file): `corres/NAME.vts`, or `corres/NAME.sym.vts` when
+    /// `mirrored`.
+    pub fn template(&self, name: &str, n: usize, mirrored: bool) -> Result<Vec<Option<usize>>> {
         let file = if mirrored { format!("{name}.sym.vts") } else { format!("{name}.vts") };
-        read_index_list_file(&self.find(&[format!("corres/{file}"), file])?, true, n)
+        read_template_list_file(&self.find(&[format!("corres/{file}"), file])?, n)
     }
 
     /// Ground truth of the pair (X, Y) with n and m vertices; the mirrored template of Y too
-    /// when `symmetric`.
+    /// when `symmetric`. Template points a part lacks (0 in its `.vts`) are left out
+    /// ([`GroundTruth::from_templates`]).
     pub fn ground_truth(&self, x: &str, y: &str, n: usize, m: usize, symmetric: bool) -> Result<GroundTruth> {
-        let gt = GroundTruth {
-            x: self.template(x, n, false)?,
-            y: self.template(y, m, false)?,
-            y_sym: if symmetric { Some(self.template(y, m, true)?) } else { None },
-        };
-        if gt.x.len() != gt.y.len() || gt.y_sym.as_ref().is_some_and(|s| s.len() != gt.y.len()) {
+        let (tx, ty) = (self.template(x, n, false)?, self.template(y, m, false)?);
+        let ts = if symmetric { Some(self.template(y, m, true)?) } else { None };
+        if tx.len() != ty.len() || ts.as_ref().is_some_and(|s| s.len() != ty.len()) {
             return Err(Error::invalid(
                 "ground truth",
-                format!("the template files of {x} and {y} have different lengths ({} and {})", gt.x.len(), gt.y.len()),
+                format!("the template files of {x} and {y} have different lengths ({} and {})", tx.len(), ty.len()),
             ));
         }
-        Ok(gt)
+        GroundTruth::from_templates(&tx, &ty, ts.as_deref())
     }
 
     /// Segment labels of `shape` (n vertices) for the pair (a, b):

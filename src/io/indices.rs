@@ -74,6 +74,28 @@ pub fn read_index_list<R: BufRead>(r: R, path: &Path, one_based: bool, n: usize)
     Ok(out)
 }
 
+/// Reads a ground-truth template file (`.vts`): one 1-based vertex index per line on a shape
+/// with `n` vertices, where 0 marks a template point the shape lacks (a part cut from a whole
+/// shape): None. Errors as [`read_index_list`] (an index beyond n, a negative one, no line).
+pub fn read_template_list<R: BufRead>(r: R, path: &Path, n: usize) -> Result<Vec<Option<usize>>> {
+    let mut lines = LineReader::new(r, path, 1);
+    let mut out = Vec::new();
+    while let Some((line, text)) = lines.next_content()? {
+        super::check_records(out.len(), "vertex indices", path, Some(line))?;
+        let v: i64 = parse_tok(text, "an integer vertex", path, line)?;
+        out.push(if v == 0 { None } else { Some(index(text, true, n, path, line, "vertex")?) });
+    }
+    if out.is_empty() {
+        return Err(Error::parse(path, None, "expected at least one vertex index, found none"));
+    }
+    Ok(out)
+}
+
+/// [`read_template_list`] from a file.
+pub fn read_template_list_file(path: &Path, n: usize) -> Result<Vec<Option<usize>>> {
+    read_template_list(super::open(path)?, path, n)
+}
+
 /// Reads per-vertex integer labels: exactly `n` lines, each a non-negative integer.
 pub fn read_labels<R: BufRead>(r: R, path: &Path, n: usize) -> Result<Vec<u32>> {
     let mut lines = LineReader::new(r, path, 1);

@@ -178,7 +178,7 @@ pub struct Candidate {
 
 impl Candidate {
     /// A candidate of size k with no score yet.
-    fn unscored(k: usize) -> Candidate {
+    pub(super) fn unscored(k: usize) -> Candidate {
         Candidate {
             k,
             distortion: f64::NAN,
@@ -217,7 +217,7 @@ pub struct AxiomaticResult {
     pub correction: Option<super::search::Correction>,
 }
 
-fn samples_of(s: &PreparedShape, count: usize) -> Result<Samples> {
+pub(super) fn samples_of(s: &PreparedShape, count: usize) -> Result<Samples> {
     match (s.positions(), count) {
         (Some(p), c) if c > 0 => farthest_point_samples(p, &s.basis.mass, c),
         _ => Ok(Samples::all(&s.basis.mass)),
@@ -624,7 +624,7 @@ fn spread(n: usize, rows: &[usize], images: &[usize]) -> Vec<usize> {
 /// The candidate with the smallest `score` among those whose orientation agrees with the asked
 /// one (orientation ≥ 0 for preserving maps, ≤ 0 for reversing ones; all when none does or
 /// orientation is ignored); the first candidate when no score could be measured (NaN).
-fn choose(candidates: &[Candidate], orientation: Orientation, score: impl Fn(&Candidate) -> f64) -> usize {
+pub(super) fn choose(candidates: &[Candidate], orientation: Orientation, score: impl Fn(&Candidate) -> f64) -> usize {
     let agrees = |c: &Candidate| match orientation {
         Orientation::Preserve => c.orientation >= 0.0 || c.orientation.is_nan(),
         Orientation::Reverse => c.orientation <= 0.0 || c.orientation.is_nan(),

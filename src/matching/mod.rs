@@ -3,6 +3,7 @@
 //! programs are thin layers over [`run`].
 
 pub mod axiomatic;
+pub mod partial;
 pub mod search;
 
 use std::time::Instant;
@@ -92,6 +93,9 @@ pub struct MatchOptions {
     pub zoomout_step: usize,
     /// The axiomatic pipeline (method `Axiomatic`; its own refinement replaces `refine`).
     pub axiomatic: axiomatic::AxiomaticPipeline,
+    /// Partial → full matching ([`partial`]): when it runs (detected by default) and its
+    /// options. A path of the axiomatic method.
+    pub partial: partial::PartialOptions,
 }
 
 /// Eigenpairs per shape that `funcorr match` computes for the methods other than completion
@@ -172,6 +176,7 @@ impl MatchOptions {
             zoomout_to: 150,
             zoomout_step: 1,
             axiomatic: axiomatic::AxiomaticPipeline::default(),
+            partial: partial::PartialOptions::default(),
         }
     }
 }
@@ -276,6 +281,8 @@ pub struct MatchReport<'a> {
     pub candidates: Option<CandidateChoice<'a>>,
     /// The axiomatic method's basin search: what its correction did.
     pub correction: Option<&'a search::Correction>,
+    /// The axiomatic method's partial detection: whether X was matched as a part of Y, and why.
+    pub partial: Option<&'a partial::Detection>,
     /// The stages in order.
     pub stages: Vec<StageTime<'a>>,
 }
@@ -304,6 +311,11 @@ pub struct MatchResult {
     pub candidates: Option<(Vec<axiomatic::Candidate>, usize)>,
     /// The axiomatic method's basin search: what its correction did.
     pub correction: Option<search::Correction>,
+    /// The axiomatic method's partial detection (None for the other methods).
+    pub partial: Option<partial::Detection>,
+    /// For a part X of Y: for every vertex of Y (length m) the confidence in [0, 1] that X
+    /// covers it ([`partial::coverage`]; ≥ ½: covered).
+    pub coverage: Option<Vec<f64>>,
 }
 
 impl MatchResult {
@@ -327,6 +339,7 @@ impl MatchResult {
             solver: self.solver.as_ref(),
             candidates: self.candidates.as_ref().map(|(c, i)| CandidateChoice { candidates: c, chosen: *i }),
             correction: self.correction.as_ref(),
+            partial: self.partial.as_ref(),
             stages: self.stages.iter().map(|(s, t)| StageTime { stage: s, seconds: *t }).collect(),
         }
     }
@@ -501,6 +514,8 @@ fn run_with_gradients(
         stages,
         candidates: None,
         correction: None,
+        partial: None,
+        coverage: None,
     })
 }
 
@@ -516,6 +531,12 @@ pub fn run_prepared(
     opts: &MatchOptions,
 ) -> Result<MatchResult> {
     if opts.method != Method::Axiomatic {
+        if opts.partial.mode == partial::PartialMode::Always {
+            return Err(Error::invalid(
+                "partial",
+                "partial matching is a path of the axiomatic method (the default); other methods match whole shapes",
+            ));
+        }
         let orient = opts.method == Method::Completion
             && opts.completion.params.mu_prior > 0.0
             && opts.axiomatic.fit.weights.orientation > 0.0
@@ -528,6 +549,10 @@ pub fn run_prepared(
         let r =
             run_with_gradients(&x.basis, &y.basis, Some((&x.laplacian, &y.laplacian)), gradients, points, f, g, opts)?;
         return Ok(in_input_units(r, x, y));
+    }
+    let detection = partial::detect(x, y, &opts.partial);
+    if detection.partial {
+        return run_partial(x, y, f, g, opts, detection);
     }
     let r = axiomatic::axiomatic_pipeline(x, y, f, g, &opts.axiomatic)?;
     let mut stages = r.stages;
@@ -552,6 +577,45 @@ pub fn run_prepared(
         stages,
         candidates: Some((r.candidates, r.chosen)),
         correction: r.correction,
+        partial: Some(detection),
+        coverage: None,
+    };
+    Ok(in_input_units(r, x, y))
+}
+
+/// The partial path of [`run_prepared`] ([`partial::partial_pipeline`]): `c` (k_Y × k_X) is the
+/// transpose of the final pull-back C_yx, `map_yx` its pull-back point map Y → X (for colour
+/// transfer: the vertices of Y that X does not cover get a vertex of X all the same; see
+/// `coverage`).
+fn run_partial(
+    x: &crate::prepared::PreparedShape,
+    y: &crate::prepared::PreparedShape,
+    f: &Descriptors,
+    g: &Descriptors,
+    opts: &MatchOptions,
+    mut detection: partial::Detection,
+) -> Result<MatchResult> {
+    let r = partial::partial_pipeline(x, y, f, g, &opts.axiomatic, &opts.partial)?;
+    detection.used_ratio = Some(r.area_ratio);
+    let mut stages = r.stages;
+    let c = r.c_yx.transpose().to_owned();
+    let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
+    let map_yx = timed(&mut stages, "map Y → X", || {
+        crate::refine::map_of_pullback(psi, phi, c.as_ref(), None, crate::refine::Scope::Exact)
+    })?;
+    let r = MatchResult {
+        map_xy: r.map_xy,
+        map_yx,
+        c,
+        c_method: r.c_fit.transpose().to_owned(),
+        coefficients: None,
+        factors: None,
+        solver: None,
+        stages,
+        candidates: Some((r.candidates, r.chosen)),
+        correction: r.correction,
+        partial: Some(detection),
+        coverage: Some(r.coverage),
     };
     Ok(in_input_units(r, x, y))
 }

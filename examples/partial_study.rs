@@ -1,0 +1,169 @@
+//! Partial → full matching on a partial data set (issue 28): every pair of `pairs.txt` (a part
+//! `NAME_cut` and a whole target) matched by `funcorr match`'s pipeline with the partial path,
+//! scored on the template points present in the part (`.vts` entries ≠ 0) with exact geodesics on
+//! Y (error / √area(Y) ×100, directly and with the left–right flip forgiven), and the coverage
+//! of Y checked against the truth; one JSON line per pair on stdout.
+//!
+//! ```sh
+//! cargo run --release --example partial_study -- ../shared/data/faust_r_partial 0:97 > runs/faust_partial.jsonl
+//! cargo run --release --example partial_study -- ../shared/data/tosca_r_partial 0:109 > runs/tosca_partial.jsonl
+//! MODE=auto cargo run --release --example partial_study -- ../shared/data/faust_r_partial 0:10
+//! DETECT=1 cargo run --release --example partial_study -- ../shared/data/faust_r 0:97   # detection only
+//! ```
+//! `MODE=always|auto|never` (default `always`: `--partial`); `SLOPE=s` the slope of the
+//! rectangular maps (default 1). `DETECT=1`: no matching, the detection of every shape of the
+//! pairs against the pair's other shape (for whole data sets: none should be detected).
+//!
+//! Coverage truth: a vertex of Y is covered when its nearest template point of Y (Euclidean,
+//! among the vertices of `Y.vts`) is present in X; IoU of that set and the vertices of Y whose
+//! confidence is ≥ ½.
+
+use std::io::Write;
+use std::path::Path;
+use std::sync::Mutex;
+use std::time::Instant;
+
+use funcorr::benchmark::Dataset;
+use funcorr::descriptors::signatures::WksRecipe;
+use funcorr::geodesic::ExactGeodesics;
+use funcorr::matching::partial::{self, PartialMode};
+use funcorr::matching::{self, MatchOptions};
+use funcorr::prepared::LaplacianChoice;
+use funcorr::shape::Shape;
+use funcorr::spectral::BasisCache;
+use funcorr::{PreparedShape, Result};
+use rayon::prelude::*;
+
+/// 1-based template file, 0 = absent → None.
+fn template(path: &Path) -> Vec<Option<usize>> {
+    std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| {
+            let v: usize = l.trim().parse().expect("an index");
+            v.checked_sub(1)
+        })
+        .collect()
+}
+
+fn main() -> Result<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let dir = Path::new(&args[0]);
+    let ds = Dataset::open(dir)?;
+    let all = ds.pairs(None)?;
+    let (a, b) = args[1].split_once(':').expect("start:end");
+    let (start, end): (usize, usize) = (a.parse().unwrap(), b.parse().unwrap());
+    let pairs: Vec<(String, String)> = all.into_iter().skip(start).take(end - start).collect();
+    let mode = match std::env::var("MODE").as_deref() {
+        Ok("auto") => PartialMode::Auto,
+        Ok("never") => PartialMode::Never,
+        _ => PartialMode::Always,
+    };
+    let mut opts = MatchOptions::default();
+    opts.partial.mode = mode;
+    if let Ok(s) = std::env::var("SLOPE") {
+        opts.partial.slope = s.parse().expect("SLOPE");
+    }
+    let detect_only = std::env::var("DETECT").is_ok();
+    let k = if detect_only { 20 } else { 200 };
+    let cache = BasisCache::default_dir().map(BasisCache::new);
+    let mut names: Vec<String> = pairs.iter().flat_map(|(x, y)| [x.clone(), y.clone()]).collect();
+    names.sort();
+    names.dedup();
+    let t = Instant::now();
+    let shapes: Vec<(String, PreparedShape)> = names
+        .par_iter()
+        .map(|n| {
+            let s = Shape::load(ds.shape_path(n).expect("shape"))?;
+            Ok((n.clone(), PreparedShape::new(s, LaplacianChoice::Auto, k, cache.as_ref())?))
+        })
+        .collect::<Result<_>>()?;
+    eprintln!("{} shapes prepared in {:.1} s", shapes.len(), t.elapsed().as_secs_f64());
+    let get = |n: &str| &shapes.iter().find(|s| s.0 == n).expect("prepared").1;
+    let out = Mutex::new(std::io::stdout());
+    let print = |line: String| {
+        let mut o = out.lock().unwrap();
+        writeln!(o, "{line}").unwrap();
+        o.flush().unwrap();
+    };
+    if detect_only {
+        let auto = partial::PartialOptions::default();
+        pairs.par_iter().for_each(|(xn, yn)| {
+            let (x, y) = (get(xn), get(yn));
+            for (a, b, an, bn) in [(x, y, xn, yn), (y, x, yn, xn)] {
+                let d = partial::detect(a, b, &auto);
+                print(format!(
+                    "{{\"x\":\"{an}\",\"y\":\"{bn}\",\"partial\":{},\"ratio\":{:.4},\"boundary\":{:?},\"reason\":\"{}\"}}",
+                    d.partial, d.area_ratio, d.boundary_x, d.reason
+                ));
+            }
+        });
+        return Ok(());
+    }
+    pairs.par_iter().for_each(|(xn, yn)| {
+        let (x, y) = (get(xn), get(yn));
+        let Shape::Mesh(ym) = &y.shape else { panic!("Y must be a mesh") };
+        let tx = template(&dir.join(format!("corres/{xn}.vts")));
+        let ty = template(&dir.join(format!("corres/{yn}.vts")));
+        let ts = template(&dir.join(format!("corres/{yn}.sym.vts")));
+        let t = Instant::now();
+        let run = || -> Result<matching::MatchResult> {
+            let det = partial::detect(x, y, &opts.partial);
+            let (f, g) = if det.partial {
+                partial::pair_wks(x, y, &WksRecipe::default())?
+            } else {
+                let r = WksRecipe::default();
+                (
+                    funcorr::descriptors::signatures::wks_recipe(&x.basis, &r)?,
+                    funcorr::descriptors::signatures::wks_recipe(&y.basis, &r)?,
+                )
+            };
+            matching::run_prepared(x, y, &f, &g, &opts)
+        };
+        let line = match run() {
+            Ok(r) => {
+                let secs = t.elapsed().as_secs_f64();
+                let geo = ExactGeodesics::new(ym).expect("geodesics");
+                let sqrt_area = ym.total_area().sqrt();
+                let present: Vec<usize> = (0..tx.len()).filter(|&i| tx[i].is_some() && ty[i].is_some()).collect();
+                let pairs_of = |truth: &[Option<usize>]| -> Vec<(usize, usize)> {
+                    present.iter().map(|&i| (truth[i].unwrap_or(0), r.map_xy[tx[i].unwrap()])).collect()
+                };
+                let direct = geo.pair_distances(&pairs_of(&ty)).expect("distances");
+                let mirrored = geo.pair_distances_capped(&pairs_of(&ts), &direct).expect("distances");
+                let kk = direct.len() as f64;
+                let d = 100.0 * direct.iter().sum::<f64>() / kk / sqrt_area;
+                let s = 100.0 * direct.iter().zip(&mirrored).map(|(a, b)| a.min(*b)).sum::<f64>() / kk / sqrt_area;
+                // Coverage truth through Y's template points.
+                let pv = ym.vertices();
+                let tpl: Vec<(usize, bool)> = (0..ty.len()).filter_map(|i| ty[i].map(|v| (v, tx[i].is_some()))).collect();
+                let tpos: Vec<[f64; 3]> = tpl.iter().map(|&(v, _)| pv[v]).collect();
+                let near = funcorr::spatial::nearest3(&tpos, pv);
+                let truth: Vec<bool> = near.iter().map(|&t| tpl[t].1).collect();
+                let (iou, det) = match (&r.coverage, &r.partial) {
+                    (Some(c), Some(det)) => {
+                        let inter = (0..c.len()).filter(|&v| c[v] >= 0.5 && truth[v]).count();
+                        let uni = (0..c.len()).filter(|&v| c[v] >= 0.5 || truth[v]).count();
+                        (inter as f64 / uni.max(1) as f64, det.partial)
+                    }
+                    (_, det) => (f64::NAN, det.as_ref().is_some_and(|d| d.partial)),
+                };
+                let chosen = r.candidates.as_ref().map_or(0, |(c, i)| c[*i].k);
+                let corrected = r.candidates.as_ref().is_some_and(|(c, i)| c[*i].corrected_from.is_some());
+                format!(
+                    "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"n\":{},\"ratio\":{:.3},\"partial\":{det},\"direct\":{d:.3},\"sym\":{s:.3},\"iou\":{iou:.3},\"points\":{},\"used\":{:.3},\"k\":{chosen},\"corrected\":{corrected},\"C\":[{},{}],\"seconds\":{secs:.2}}}",
+                    x.n(),
+                    x.area / y.area,
+                    present.len(),
+                    r.partial.as_ref().and_then(|d| d.used_ratio).unwrap_or(f64::NAN),
+                    r.c.nrows(),
+                    r.c.ncols()
+                )
+            }
+            Err(e) => format!("{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"error\":\"{e}\"}}"),
+        };
+        print(line);
+    });
+    Ok(())
+}

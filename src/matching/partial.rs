@@ -1,0 +1,652 @@
+//! Partial → full matching: X is a part of Y (a scan from one side, a shape cut by a plane, a
+//! missing limb), and every vertex of X is matched to a vertex of Y while most of Y has no
+//! preimage.
+//!
+//! **Why the pull-back direction suits a part.** The pipeline works with C_yx (k_X × k_Y), the
+//! pull-back of functions on Y to functions on X (`crate::refine`). Restricting a function of Y
+//! to the part is exact, so the data identity F = Π G, the descriptor commutativity and the
+//! orientation term hold for a part as for a whole; what changes is the spectrum. The part's
+//! Laplacian (cotangent, natural Neumann boundary conditions) has, by Weyl's law, eigenvalue j
+//! near the whole's eigenvalue j / r, r = area(X) / area(Y), in the same units: the j-th
+//! function of Y restricted to X lives in the first ≈ r·j functions of X, and C_yx is slanted,
+//! k_X ≈ r k_Y (Rodolà et al. 2017, "Partial functional correspondence"). So:
+//!
+//! 1. **Data** in common units: the descriptors F, G are divided by the norms of G's columns on
+//!    Y (not each by its own: F is a piece of G), plus signed descriptors (low-passed to
+//!    r · `signed_smoothing` functions of X and `signed_smoothing` of Y). [`pair_wks`] gives WKS
+//!    at the same energies on both shapes (X's eigenvalues in Y's units), the default data.
+//! 2. **Candidates**: the axiomatic energy ([`crate::fmap::energy`]) of a rectangular C_yx,
+//!    k_X = ⌈`slope` · r · k_Y⌉, at the sizes k_Y of `candidates`, X's eigenvalues divided by r
+//!    (the mask then follows the slanted diagonal).
+//! 3. **Basin search** ([`super::search`]): each candidate refined by a short rectangular ZoomOut
+//!    and scored by the geodesic distortion of its map on 200 samples of X against 500 anchors
+//!    of Y (X's distances in Y's units: distances on a part are at least those on the whole, so
+//!    the score is valid for a part), its data misfit and its orientation; its samples corrected
+//!    by L1 trilateration and the best correction probed as one more candidate.
+//! 4. **Refinement**: rectangular ZoomOut (k_Y up to `refine.k_final`, k_X following the slope)
+//!    on farthest-point samples of X, then the map of every vertex of X. No bijective polish: the
+//!    map is not a bijection.
+//! 5. **Coverage** ([`coverage`]): a confidence on every vertex of Y that X covers it, from the
+//!    geodesic distance to the nearest image of X, thresholded so that the covered area matches
+//!    area(X).
+//!
+//! **Detection** ([`detect`]): X is taken for a part when its area is at most `max_area_ratio`
+//! of Y's and its boundary (total length of its boundary loops) is at least `min_boundary`
+//! · √area(X). Point clouds have no boundary to measure: only `--partial` (`PartialMode::Always`)
+//! sends them here.
+
+use faer::Mat;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::axiomatic::{choose, samples_of, AxiomaticPipeline, Candidate};
+use super::search::{self, SampleDistances};
+use crate::descriptors::signatures::{WksRecipe, WKS_VARIANCE};
+use crate::descriptors::{self, Descriptors};
+use crate::error::{Error, Result};
+use crate::fmap::axiomatic::{constant_column, spectral_side, ShapeData};
+use crate::fmap::energy::{Energy, Orientation};
+use crate::geodesic::GraphGeodesics;
+use crate::prepared::PreparedShape;
+use crate::refine::{self, Scope};
+use crate::shape::Shape;
+use crate::spatial::Samples;
+
+/// When the partial path runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PartialMode {
+    /// When [`detect`] finds X to be a part of Y (the default).
+    #[default]
+    Auto,
+    /// Always (`--partial`): X is a part of Y.
+    Always,
+    /// Never: X is matched as a whole shape.
+    Never,
+}
+
+/// Options of the partial path.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PartialOptions {
+    /// When it runs.
+    pub mode: PartialMode,
+    /// Detection: largest area ratio area(X) / area(Y) of a part (dimensionless).
+    pub max_area_ratio: f64,
+    /// Detection: smallest boundary length of a part, in units of √area(X) (dimensionless).
+    pub min_boundary: f64,
+    /// k_X = ⌈slope · r · k_Y⌉ for the rectangular functional maps C_yx (k_X × k_Y).
+    pub slope: f64,
+}
+
+impl Default for PartialOptions {
+    fn default() -> Self {
+        PartialOptions { mode: PartialMode::Auto, max_area_ratio: 0.9, min_boundary: 0.25, slope: 1.0 }
+    }
+}
+
+/// What [`detect`] measured and decided.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Detection {
+    /// area(X) / area(Y) (total vertex weights of the inputs).
+    pub area_ratio: f64,
+    /// Total length of X's boundary loops / √area(X) (None for a point set).
+    pub boundary_x: Option<f64>,
+    /// The same for Y.
+    pub boundary_y: Option<f64>,
+    /// Whether the partial path runs.
+    pub partial: bool,
+    /// The area ratio the partial path used ([`PartialResult::area_ratio`]; None before it ran).
+    pub used_ratio: Option<f64>,
+    /// Why, in words.
+    pub reason: String,
+}
+
+/// Total length of the boundary loops of a shape / √area (None for a point set).
+fn relative_boundary(s: &PreparedShape) -> Option<f64> {
+    let Shape::Mesh(m) = &s.shape else { return None };
+    let v = m.vertices();
+    let length: f64 = m
+        .boundary_loops()
+        .iter()
+        .map(|l| {
+            (0..l.len())
+                .map(|i| {
+                    let (a, b) = (v[l[i] as usize], v[l[(i + 1) % l.len()] as usize]);
+                    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+                })
+                .sum::<f64>()
+        })
+        .sum();
+    // abs: the empty sum is −0.
+    Some(length.abs() / s.area.sqrt())
+}
+
+/// Whether X is a part of Y (module docs, "Detection"), or what `opts.mode` says.
+pub fn detect(x: &PreparedShape, y: &PreparedShape, opts: &PartialOptions) -> Detection {
+    let area_ratio = x.area / y.area;
+    let (boundary_x, boundary_y) = (relative_boundary(x), relative_boundary(y));
+    let (partial, reason) = match (opts.mode, boundary_x) {
+        (PartialMode::Always, _) => (true, "asked (--partial)".to_string()),
+        (PartialMode::Never, _) => (false, "partial matching turned off".to_string()),
+        (PartialMode::Auto, None) => {
+            (false, "X is a point set: no boundary to measure (use --partial for a part)".to_string())
+        }
+        (PartialMode::Auto, Some(b)) => {
+            let small = area_ratio <= opts.max_area_ratio;
+            let open = b >= opts.min_boundary;
+            let reason = format!(
+                "area ratio {area_ratio:.3} ({} {}), boundary length {b:.3} √area(X) ({} {})",
+                if small { "≤" } else { ">" },
+                opts.max_area_ratio,
+                if open { "≥" } else { "<" },
+                opts.min_boundary
+            );
+            (small && open, reason)
+        }
+    };
+    Detection { area_ratio, boundary_x, boundary_y, partial, used_ratio: None, reason }
+}
+
+/// The WKS of both shapes at the same energies, for a part X of Y (module docs, step 1): the
+/// energies of `recipe` from Y's first `recipe.eigenpairs` eigenvalues (as
+/// [`crate::descriptors::signatures::wks_recipe`]), X's eigenvalues taken in Y's units (λ / r,
+/// φ² / r on the unit-area bases) and cut at Y's largest one, so that both sums run over the
+/// same band of frequencies. Not normalized per shape (the pipeline divides both by G's norms).
+/// F: n × q, G: m × q. Errors: fewer than two non-zero eigenvalues, a bad recipe.
+pub fn pair_wks(x: &PreparedShape, y: &PreparedShape, recipe: &WksRecipe) -> Result<(Descriptors, Descriptors)> {
+    if recipe.keep_every == 0 || recipe.eigenpairs < 2 || recipe.energies == 0 {
+        return Err(Error::invalid("WKS recipe", "need energies ≥ 1, keep_every ≥ 1 and at least 2 eigenpairs"));
+    }
+    let r = x.area / y.area;
+    let ky = recipe.eigenpairs.min(y.basis.k());
+    let mu = &y.basis.eigenvalues[..ky];
+    let top = mu[ky - 1];
+    let nonzero = |l: f64| l > 1e-8 * top;
+    let first = mu.iter().copied().find(|&l| nonzero(l));
+    let Some(first) = first.filter(|_| mu.iter().filter(|&&l| nonzero(l)).count() >= 2) else {
+        return Err(Error::invalid("basis", "the WKS needs at least two non-zero eigenvalues of Y"));
+    };
+    let count = recipe.energies;
+    let (mut e_min, mut e_max) = (first.ln(), top.ln());
+    let sigma = WKS_VARIANCE * (e_max - e_min) / count as f64;
+    if e_max - e_min > 4.0 * sigma {
+        e_min += 2.0 * sigma;
+        e_max -= 2.0 * sigma;
+    }
+    let energies: Vec<f64> = if count == 1 {
+        vec![0.5 * (e_min + e_max)]
+    } else {
+        (0..count).map(|j| e_min + (e_max - e_min) * j as f64 / (count - 1) as f64).step_by(recipe.keep_every).collect()
+    };
+    // One side: Σ_i φ_i(v)² g_e(λ_i) over the non-zero λ_i ≤ top, in Y's units.
+    let side = |b: &crate::spectral::Basis, scale: f64| -> Result<Descriptors> {
+        let used: Vec<usize> = (0..b.k())
+            .filter(|&i| nonzero(b.eigenvalues[i] / scale) && b.eigenvalues[i] / scale <= top * (1.0 + 1e-9))
+            .collect();
+        let g = Mat::from_fn(used.len(), energies.len(), |t, j| {
+            let l = b.eigenvalues[used[t]] / scale;
+            (-(energies[j] - l.ln()).powi(2) / (2.0 * sigma * sigma)).exp()
+        });
+        let sq = Mat::from_fn(b.n(), used.len(), |v, t| b.eigenvectors[(v, used[t])].powi(2) / scale);
+        Descriptors::new(
+            crate::linalg::mul(sq.as_ref(), g.as_ref()),
+            energies.iter().map(|e| format!("wks:e={e:.6}")).collect(),
+        )
+    };
+    Ok((side(&x.basis, r)?, side(&y.basis, 1.0)?))
+}
+
+/// The L2 norm on Y (unit area) of every column of G.
+fn column_norms(g: &Descriptors, mass: &[f64]) -> Vec<f64> {
+    (0..g.q()).map(|j| g.values.col_as_slice(j).iter().zip(mass).map(|(v, a)| a * v * v).sum::<f64>().sqrt()).collect()
+}
+
+/// F and G divided by G's column norms on Y, and the signed descriptors of both in Y's units
+/// (module docs, step 1). Errors: different column counts, a column of G of zero norm.
+fn partial_data(
+    x: &PreparedShape,
+    y: &PreparedShape,
+    f: &Descriptors,
+    g: &Descriptors,
+    p: &AxiomaticPipeline,
+    r: f64,
+) -> Result<(Descriptors, Descriptors)> {
+    if f.q() != g.q() || f.n() != x.n() || g.n() != y.n() {
+        return Err(Error::invalid(
+            "data",
+            format!("{} × {} on X and {} × {} on Y: need n × q and m × q", f.n(), f.q(), g.n(), g.q()),
+        ));
+    }
+    let norms = column_norms(g, &y.basis.mass);
+    if let Some(j) = norms.iter().position(|&v| !(v > 0.0 && v.is_finite())) {
+        return Err(Error::invalid("data", format!("column {j} ({}) of Y's data has no norm", g.names[j])));
+    }
+    let scaled = |d: &Descriptors, norms: &[f64], s: f64| {
+        Descriptors::new(Mat::from_fn(d.n(), d.q(), |i, j| s * d.values[(i, j)] / norms[j]), d.names.clone())
+    };
+    let (fx, gy) = (scaled(f, &norms, 1.0)?, scaled(g, &norms, 1.0)?);
+    let (Some(grads_x), Some(grads_y)) = (x.gradients(), y.gradients()) else {
+        return Ok((fx, gy));
+    };
+    if p.signed == 0 || p.fit.orientation == Orientation::Ignore || fx.q() < 2 {
+        return Ok((fx, gy));
+    }
+    let pairs = descriptors::signed_pairs(fx.q(), 2 * p.signed);
+    let smooth_x = ((r * p.signed_smoothing as f64).ceil() as usize).max(1);
+    let sx = descriptors::signed(&fx, grads_x, &x.basis, &pairs, smooth_x)?;
+    let sy = descriptors::signed(&gy, grads_y, &y.basis, &pairs, p.signed_smoothing)?;
+    // X's gradients at unit area are √r times those in Y's units: the products, r times.
+    let ny = column_norms(&sy, &y.basis.mass);
+    let nx: Vec<f64> = column_norms(&sx, &x.basis.mass).iter().map(|v| v / r).collect();
+    let (mx, my) = (nx.iter().fold(0.0f64, |a, &b| a.max(b)), ny.iter().fold(0.0f64, |a, &b| a.max(b)));
+    let keep: Vec<usize> =
+        (0..pairs.len()).filter(|&j| nx[j] > 1e-6 * mx && ny[j] > 1e-6 * my).take(p.signed).collect();
+    if keep.is_empty() {
+        return Ok((fx, gy));
+    }
+    let sign = if p.fit.orientation == Orientation::Reverse { -1.0 } else { 1.0 };
+    let pick = |d: &Descriptors, s: f64| {
+        Descriptors::new(
+            Mat::from_fn(d.n(), keep.len(), |i, t| s * d.values[(i, keep[t])] / ny[keep[t]]),
+            keep.iter().map(|&j| d.names[j].clone()).collect(),
+        )
+    };
+    Ok((fx.concat(&pick(&sx, 1.0 / r)?)?, gy.concat(&pick(&sy, sign)?)?))
+}
+
+/// What [`partial_pipeline`] returns.
+#[derive(Clone, Debug)]
+pub struct PartialResult {
+    /// The point map X → Y (length n).
+    pub map_xy: Vec<usize>,
+    /// The final pull-back functional map (k_X × k_Y, Y → X).
+    pub c_yx: Mat<f64>,
+    /// The chosen candidate's fit (k_X × k_Y, Y → X).
+    pub c_fit: Mat<f64>,
+    /// Every candidate, in the order of the options, then the corrected ones.
+    pub candidates: Vec<Candidate>,
+    /// Index of the chosen one.
+    pub chosen: usize,
+    /// (stage, seconds).
+    pub stages: Vec<(String, f64)>,
+    /// For every vertex of Y (length m) the confidence in [0, 1] that X covers it ([`coverage`]).
+    pub coverage: Vec<f64>,
+    /// What the correction of the candidate it started from did.
+    pub correction: Option<search::Correction>,
+    /// The area ratio r the result was computed with: area(X) / area(Y), or its estimate from
+    /// the distances of a first pass's map when the two differ by more than 10 % (module docs).
+    pub area_ratio: f64,
+}
+
+/// Rounds of the final map read the other way (after the final ZoomOut).
+const FINAL_ROUNDS: usize = 3;
+
+/// The sizes of the rectangular maps: k_X for a given k_Y.
+#[derive(Clone, Copy)]
+struct Slope {
+    ratio: f64,
+    max_x: usize,
+}
+
+impl Slope {
+    fn kx(&self, ky: usize) -> usize {
+        ((self.ratio * ky as f64).ceil() as usize).clamp(2.min(self.max_x), self.max_x)
+    }
+}
+
+/// Rectangular ZoomOut in the pull-back direction on `samples` of X: the samples' images
+/// ([`refine::map_of_pullback`]), then the pull-back map of the next size (k_Y + step, k_X from
+/// the slope), up to k_Y = `ky_final`.
+fn zoomout(
+    x: &PreparedShape,
+    y: &PreparedShape,
+    samples: &Samples,
+    c0: &Mat<f64>,
+    ky_final: usize,
+    step: usize,
+    slope: Slope,
+) -> Result<Mat<f64>> {
+    let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
+    let mut c = c0.clone();
+    let mut ky = c.ncols();
+    let step = step.max(1);
+    while ky < ky_final {
+        crate::progress::check()?;
+        let map = refine::map_of_pullback(phi, psi, c.as_ref(), Some(&samples.vertices), Scope::Exact)?;
+        ky = (ky + step).min(ky_final);
+        c = refine::pullback(phi, psi, samples, &map, slope.kx(ky), ky)?;
+    }
+    Ok(c)
+}
+
+/// The search's data (as the whole pipeline's), X's distances in Y's units.
+struct PartialSearch {
+    x: SampleDistances,
+    y: SampleDistances,
+    neighbours: Vec<Vec<usize>>,
+    descriptors: Mat<f64>,
+}
+
+/// A probed candidate.
+struct Probe {
+    candidate: Candidate,
+    c: Mat<f64>,
+    images: Vec<usize>,
+    corrected: [Option<(Vec<usize>, search::Correction)>; 2],
+}
+
+/// Runs the partial pipeline (module docs) from descriptors F (n × q) on the part X and G
+/// (m × q) on the whole Y, with the pipeline options `p` (candidate sizes k_Y, probe and final
+/// ZoomOut, search, signed descriptors, energy) and the partial options `o` (slope). Needs the
+/// surfaces of both shapes (meshes or point clouds). Errors: as [`super::axiomatic::axiomatic_pipeline`], and a
+/// shape without a surface.
+pub fn partial_pipeline(
+    x: &PreparedShape,
+    y: &PreparedShape,
+    f: &Descriptors,
+    g: &Descriptors,
+    p: &AxiomaticPipeline,
+    o: &PartialOptions,
+) -> Result<PartialResult> {
+    if p.candidates.is_empty() || p.candidates.contains(&0) {
+        return Err(Error::invalid("candidates", "need at least one functional-map size ≥ 1"));
+    }
+    if !(o.slope.is_finite() && o.slope > 0.0) {
+        return Err(Error::invalid("partial slope", format!("must be finite and > 0, got {}", o.slope)));
+    }
+    let need = p.basis_size();
+    if x.basis.k() < 2 || y.basis.k() < need {
+        return Err(Error::invalid(
+            "bases",
+            format!(
+                "the partial pipeline needs {need} eigenpairs of Y, the bases hold {} and {}",
+                x.basis.k(),
+                y.basis.k()
+            ),
+        ));
+    }
+    let (Some(tx), Some(ty), Some(px), Some(nx), Some(py), Some(ny)) =
+        (x.triangles(), y.triangles(), x.positions(), x.normals(), y.positions(), y.normals())
+    else {
+        return Err(Error::invalid(
+            "shapes",
+            "partial matching needs the surfaces of both shapes (meshes or 3-D point clouds)",
+        ));
+    };
+    let r0 = x.area / y.area;
+    if !(r0.is_finite() && r0 > 0.0) {
+        return Err(Error::invalid("shapes", format!("area ratio {r0} of X to Y")));
+    }
+    let surfaces = Surfaces { tx, ty, px, nx, py, ny };
+    // The shapes' scales may differ (FAUST's bodies, remeshed, differ in area by up to 1.9×
+    // between poses): r is re-estimated from the first pass's map, and the pipeline run again
+    // when the estimate differs from the area ratio by more than 10 %.
+    let (first, estimate) = pass(x, y, f, g, p, o, &surfaces, r0)?;
+    if (estimate / r0 - 1.0).abs() > 0.1 {
+        let (mut second, _) = pass(x, y, f, g, p, o, &surfaces, estimate)?;
+        first.stages.iter().for_each(|(n, t)| second.stages.push((format!("{n} (first pass)"), *t)));
+        return Ok(second);
+    }
+    Ok(first)
+}
+
+/// The surfaces of both shapes at unit area: triangles, positions and normals.
+struct Surfaces<'a> {
+    tx: &'a crate::shape::TriMesh,
+    ty: &'a crate::shape::TriMesh,
+    px: &'a [[f64; 3]],
+    nx: &'a [[f64; 3]],
+    py: &'a [[f64; 3]],
+    ny: &'a [[f64; 3]],
+}
+
+/// One pass of [`partial_pipeline`] with the area ratio r (area of X in Y's units / area of Y);
+/// returns its result and the area ratio estimated from its map: (median over pairs of X's
+/// search samples of d_Y(π(s_i), π(s_j)) / d_X(s_i, s_j))², at unit areas, over the pairs
+/// farther apart than four covering radii of the anchors.
+#[allow(clippy::too_many_arguments)]
+fn pass(
+    x: &PreparedShape,
+    y: &PreparedShape,
+    f: &Descriptors,
+    g: &Descriptors,
+    p: &AxiomaticPipeline,
+    o: &PartialOptions,
+    surfaces: &Surfaces,
+    r: f64,
+) -> Result<(PartialResult, f64)> {
+    let Surfaces { tx, ty, px, nx, py, ny } = *surfaces;
+    let slope = Slope { ratio: o.slope * r, max_x: x.basis.k() };
+    let mut stages = Vec::new();
+    let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
+
+    let t = std::time::Instant::now();
+    crate::progress::stage("descriptors")?;
+    let (fx, gy) = partial_data(x, y, f, g, p, r)?;
+    stages.push(("descriptors".to_string(), t.elapsed().as_secs_f64()));
+
+    // Candidates: rectangular C_yx, Y's side the source, X's eigenvalues in Y's units.
+    let t = std::time::Instant::now();
+    crate::progress::stage("functional maps")?;
+    let w = &p.fit.weights;
+    let orient = w.orientation > 0.0 && p.fit.orientation != Orientation::Ignore;
+    let comm = w.commutativity > 0.0;
+    let dx = ShapeData { basis: &x.basis, gradients: x.gradients(), descriptors: &fx };
+    let dy = ShapeData { basis: &y.basis, gradients: y.gradients(), descriptors: &gy };
+    let ky_max = p.candidates.iter().copied().max().unwrap_or(1).min(y.basis.k());
+    let side_y = spectral_side(&dy, ky_max, comm, orient, p.fit.unit_gradients, "Y")?;
+    let mut side_x = spectral_side(&dx, slope.kx(ky_max), comm, orient, p.fit.unit_gradients, "X")?;
+    side_x.eigenvalues.iter_mut().for_each(|l| *l /= r);
+    let fits: Vec<Mat<f64>> = p
+        .candidates
+        .par_iter()
+        .map(|&ky| {
+            let ky = ky.min(ky_max);
+            let kx = slope.kx(ky);
+            let energy = Energy::new(&side_y.leading(ky), &side_x.leading(kx), w, p.fit.mask, p.fit.orientation)?;
+            energy.solve_with_first_column(&constant_column(&y.basis, &x.basis, kx))
+        })
+        .collect::<Result<_>>()?;
+    stages.push(("functional maps".to_string(), t.elapsed().as_secs_f64()));
+
+    let t = std::time::Instant::now();
+    crate::progress::stage("search samples")?;
+    let probe_samples = samples_of(x, p.probe.samples)?;
+    let (sx, sy) = rayon::join(
+        || SampleDistances::new(tx, &x.basis.mass, &GraphGeodesics::mesh_edges(tx)?, p.search.samples.max(3)),
+        || SampleDistances::new(ty, &y.basis.mass, &GraphGeodesics::mesh_edges(ty)?, p.search.anchors.max(3)),
+    );
+    let (mut sx, sy) = (sx?, sy?);
+    // X's distances in Y's units: lengths at unit area scale by √r.
+    let root = r.sqrt();
+    sx.distances = &sx.distances * faer::Scale(root);
+    sx.radius *= root;
+    let neighbours = search::sample_neighbours(&sx, 8);
+    let descriptors = search::descriptor_distances(&sx, &sy, fx.values.as_ref(), gy.values.as_ref());
+    let s = PartialSearch { x: sx, y: sy, neighbours, descriptors };
+    stages.push(("search samples".to_string(), t.elapsed().as_secs_f64()));
+
+    let t = std::time::Instant::now();
+    crate::progress::stage("candidate probes")?;
+    let probe = |c: &Mat<f64>, k: usize, correct: bool| -> Result<Probe> {
+        let c = zoomout(x, y, &probe_samples, c, p.probe.k_final.max(c.ncols()), p.probe.step, slope)?;
+        let xs = &s.x.samples.vertices;
+        let images = refine::map_of_pullback(phi, psi, c.as_ref(), Some(xs), Scope::Exact)?;
+        let mut candidate = Candidate::unscored(k);
+        candidate.distortion = search::distortion(&s.x, &s.y, &images);
+        candidate.orientation = search::orientation(px, nx, py, ny, xs, &images, &s.neighbours);
+        let (fv, gv) = (&fx.values, &gy.values);
+        candidate.data_misfit = xs
+            .iter()
+            .zip(&images)
+            .map(|(&v, &u)| (0..fv.ncols()).map(|j| (fv[(v, j)] - gv[(u, j)]).powi(2)).sum::<f64>().sqrt())
+            .sum::<f64>()
+            / images.len().max(1) as f64;
+        let mut corrected = [None, None];
+        if correct && p.search.rounds > 0 {
+            for (slot, desc) in [Some(&s.descriptors), None].into_iter().enumerate() {
+                let (fixed, report) = search::correct(&s.x, &s.y, &images, desc, p.search.rounds)?;
+                let e = report.trace.iter().copied().fold(f64::INFINITY, f64::min);
+                let or = search::orientation(px, nx, py, ny, xs, &fixed, &s.neighbours);
+                if slot == 0 {
+                    (candidate.corrected_distortion, candidate.corrected_orientation) = (e, or);
+                    candidate.moved = report.moved;
+                } else {
+                    (candidate.geodesic_corrected_distortion, candidate.geodesic_corrected_orientation) = (e, or);
+                }
+                corrected[slot] = Some((fixed, report));
+            }
+        }
+        Ok(Probe { candidate, c, images, corrected })
+    };
+    let mut probed: Vec<Probe> =
+        fits.par_iter().zip(p.candidates.par_iter()).map(|(c, &k)| probe(c, k, true)).collect::<Result<_>>()?;
+    stages.push(("candidate probes".to_string(), t.elapsed().as_secs_f64()));
+
+    // The correction, as in the whole pipeline: for each form, the corrected sample map of the
+    // candidate of lowest corrected distortion (of the asked orientation), probed as one more.
+    let t = std::time::Instant::now();
+    crate::progress::stage("correction")?;
+    let mut correction = None;
+    let mut starts = fits;
+    let originals = probed.len();
+    let mut hybrids: Vec<(usize, bool, Vec<usize>)> = Vec::new();
+    for joint in [true, false] {
+        let scored: Vec<Candidate> = probed[..originals]
+            .iter()
+            .map(|q| {
+                let c = &q.candidate;
+                let (distortion, orientation) = if joint {
+                    (c.corrected_distortion, c.corrected_orientation)
+                } else {
+                    (c.geodesic_corrected_distortion, c.geodesic_corrected_orientation)
+                };
+                Candidate { distortion, orientation, ..c.clone() }
+            })
+            .collect();
+        let from = choose(&scored, p.fit.orientation, |c| c.distortion);
+        let slot = usize::from(!joint);
+        let Some((fixed, mut report)) = probed[from].corrected[slot].take() else { continue };
+        let images = &probed[from].images;
+        let moved: Vec<bool> = images.iter().zip(&fixed).map(|(&a, &b)| search::has_moved(&s.x, &s.y, a, b)).collect();
+        report.moved = moved.iter().filter(|&&m| m).count();
+        if report.moved > 0 {
+            let hybrid = fixed.iter().zip(images).zip(&moved).map(|((&f, &o), &m)| if m { f } else { o }).collect();
+            hybrids.push((from, joint, hybrid));
+        }
+        if joint {
+            correction = Some(report);
+        }
+    }
+    let k0 = p.candidates.iter().copied().min().unwrap_or(1).min(s.x.len() / 4).max(1);
+    let extra: Vec<(Probe, Mat<f64>)> = hybrids
+        .par_iter()
+        .map(|(from, joint, hybrid)| {
+            let c0 = refine::pullback(phi, psi, &s.x.samples, hybrid, slope.kx(k0), k0)?;
+            let mut q = probe(&c0, k0, false)?;
+            q.candidate.corrected_from = Some((*from, *joint));
+            Ok((q, c0))
+        })
+        .collect::<Result<_>>()?;
+    for (q, c0) in extra {
+        probed.push(q);
+        starts.push(c0);
+    }
+    let candidates: Vec<Candidate> = probed.iter().map(|q| q.candidate.clone()).collect();
+    let median = |f: &dyn Fn(&Candidate) -> f64| {
+        let mut v: Vec<f64> = candidates.iter().map(f).filter(|x| x.is_finite() && *x > 0.0).collect();
+        v.sort_by(|a, b| a.total_cmp(b));
+        v.get(v.len() / 2).copied().unwrap_or(1.0)
+    };
+    let (me, md) = (median(&|c| c.distortion), median(&|c| c.data_misfit));
+    let chosen = choose(&candidates, p.fit.orientation, |c| c.distortion / me + c.data_misfit / md);
+    stages.push(("correction".to_string(), t.elapsed().as_secs_f64()));
+
+    let t = std::time::Instant::now();
+    crate::progress::stage("zoomout")?;
+    let c_fit = starts.swap_remove(chosen);
+    let c_start = probed.swap_remove(chosen).c;
+    let (c_yx, map_xy) = if p.refine.k_final == 0 {
+        (c_fit.clone(), refine::map_of_pullback(phi, psi, c_fit.as_ref(), None, Scope::Exact)?)
+    } else {
+        let samples = samples_of(x, p.refine.samples)?;
+        let ky = p.refine.k_final.max(c_start.ncols()).min(y.basis.k());
+        let c = zoomout(x, y, &samples, &c_start, ky, p.refine.step, slope)?;
+        let map = refine::map_of_pullback(phi, psi, c.as_ref(), None, Scope::Exact)?;
+        // The final map read the other way, FINAL_ROUNDS times (rows of Ψ against those of Φ C_yx, the restriction
+        // of Y's functions to X), from the pull-back of that map with twice as many functions
+        // of X as the slope gives: with a map near the truth the restrictions are then
+        // represented almost exactly.
+        let wide = Slope { ratio: 2.0 * slope.ratio, max_x: slope.max_x };
+        let all = Samples::all(&x.basis.mass);
+        let (mut c, mut map) = (c, map);
+        for _ in 0..FINAL_ROUNDS {
+            crate::progress::check()?;
+            c = refine::pullback(phi, psi, &all, &map, wide.kx(ky), ky)?;
+            let embedded = crate::linalg::mul(phi.subcols(0, c.nrows()), c.as_ref());
+            map = crate::pointwise::nearest_neighbors(psi.subcols(0, ky), embedded.as_ref())?;
+        }
+        (c, map)
+    };
+    stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
+
+    let t = std::time::Instant::now();
+    crate::progress::stage("coverage")?;
+    let coverage = coverage(y, &map_xy, r)?;
+    stages.push(("coverage".to_string(), t.elapsed().as_secs_f64()));
+    // The scale of the map: d_Y / d_X on the search samples (X's distances at unit area).
+    let images: Vec<usize> = s.x.samples.vertices.iter().map(|&v| s.y.nearest[map_xy[v]] as usize).collect();
+    let mut ratios = Vec::new();
+    let floor = 4.0 * s.y.radius;
+    for i in 0..images.len() {
+        for j in (i + 1)..images.len() {
+            let (a, b) = (s.x.distances[(i, j)] / root, s.y.distances[(images[i], images[j])]);
+            if a.is_finite() && b.is_finite() && a * root > floor && b > 0.0 {
+                ratios.push(b / a);
+            }
+        }
+    }
+    ratios.sort_by(|a, b| a.total_cmp(b));
+    let estimate = match ratios.get(ratios.len() / 2) {
+        Some(&q) if q.is_finite() && q > 0.0 => (q * q).min(1.0),
+        _ => r,
+    };
+    let result = PartialResult { map_xy, c_yx, c_fit, candidates, chosen, stages, coverage, correction, area_ratio: r };
+    Ok((result, estimate))
+}
+
+/// The confidence (length m, in [0, 1]) that X covers each vertex of Y, from the images
+/// `map_xy` of X's vertices: with d(v) the distance along Y's edges (unit area) from v to the
+/// nearest image and ρ the distance within which the vertices nearest to the images hold
+/// `area_ratio` of Y's area (the area of X in Y's units), the confidence is 1 / (1 + (d / ρ)⁴):
+/// 1 on the images, ½ at ρ, so that the vertices of confidence ≥ ½ have X's area. ρ is at least
+/// half of Y's mean edge length. Y without a surface: 1 on the images, 0 elsewhere. Errors: an
+/// image out of range.
+pub fn coverage(y: &PreparedShape, map_xy: &[usize], area_ratio: f64) -> Result<Vec<f64>> {
+    let m = y.n();
+    if let Some(&bad) = map_xy.iter().find(|&&v| v >= m) {
+        return Err(Error::invalid("map", format!("vertex {bad} of Y does not exist (m = {m})")));
+    }
+    let mut hit = vec![false; m];
+    map_xy.iter().for_each(|&v| hit[v] = true);
+    let Some(ty) = y.triangles() else {
+        return Ok(hit.iter().map(|&h| f64::from(u8::from(h))).collect());
+    };
+    let sources: Vec<usize> = (0..m).filter(|&v| hit[v]).collect();
+    let (dist, _) = GraphGeodesics::mesh_edges(ty)?.nearest_sources(&sources)?;
+    let mut order: Vec<usize> = (0..m).filter(|&v| dist[v].is_finite()).collect();
+    order.sort_by(|&a, &b| dist[a].total_cmp(&dist[b]));
+    let total: f64 = y.basis.mass.iter().sum();
+    let target = area_ratio.clamp(0.0, 1.0) * total;
+    let mut acc = 0.0;
+    let mut rho = 0.0;
+    for &v in &order {
+        acc += y.basis.mass[v];
+        rho = dist[v];
+        if acc >= target {
+            break;
+        }
+    }
+    let rho = rho.max(0.5 * ty.mean_edge_length()).max(f64::MIN_POSITIVE);
+    Ok(dist.iter().map(|&d| if d.is_finite() { 1.0 / (1.0 + (d / rho).powi(4)) } else { 0.0 }).collect())
+}
