@@ -11,7 +11,9 @@
 //! DETECT=1 cargo run --release --example partial_study -- ../shared/data/faust_r 0:97   # detection only
 //! ```
 //! `MODE=always|auto|never` (default `always`: `--partial`); `SLOPE=s` the slope of the
-//! rectangular maps (default 1). `DETECT=1`: no matching, the detection of every shape of the
+//! rectangular maps (default 1); `SEEDED=n` the sample maps from distances alone probed (default
+//! 0: none); `NO_ESTIMATE=1` the area ratio as it is (no estimate from distance-only maps);
+//! `STRIDE=s` every s-th pair of the range. `DETECT=1`: no matching, the detection of every shape of the
 //! pairs against the pair's other shape (for whole data sets: none should be detected).
 //!
 //! Coverage truth: a vertex of Y is covered when its nearest template point of Y (Euclidean,
@@ -54,7 +56,9 @@ fn main() -> Result<()> {
     let all = ds.pairs(None)?;
     let (a, b) = args[1].split_once(':').expect("start:end");
     let (start, end): (usize, usize) = (a.parse().unwrap(), b.parse().unwrap());
-    let pairs: Vec<(String, String)> = all.into_iter().skip(start).take(end - start).collect();
+    // STRIDE=s: every s-th pair of the range (default 1).
+    let stride: usize = std::env::var("STRIDE").map_or(1, |s| s.parse().expect("STRIDE"));
+    let pairs: Vec<(String, String)> = all.into_iter().skip(start).take(end - start).step_by(stride.max(1)).collect();
     let mode = match std::env::var("MODE").as_deref() {
         Ok("auto") => PartialMode::Auto,
         Ok("never") => PartialMode::Never,
@@ -64,6 +68,12 @@ fn main() -> Result<()> {
     opts.partial.mode = mode;
     if let Ok(s) = std::env::var("SLOPE") {
         opts.partial.slope = s.parse().expect("SLOPE");
+    }
+    if std::env::var("NO_ESTIMATE").is_ok() {
+        opts.partial.estimate_ratio = false;
+    }
+    if let Ok(s) = std::env::var("SEEDED") {
+        opts.partial.seeded = s.parse().expect("SEEDED");
     }
     let detect_only = std::env::var("DETECT").is_ok();
     let k = if detect_only { 20 } else { 200 };
@@ -110,7 +120,9 @@ fn main() -> Result<()> {
         let t = Instant::now();
         let run = || -> Result<matching::MatchResult> {
             let det = partial::detect(x, y, &opts.partial);
+            let mut opts = opts.clone();
             let (f, g) = if det.partial {
+                opts.partial.wks = Some(WksRecipe::default());
                 partial::pair_wks(x, y, &WksRecipe::default())?
             } else {
                 let r = WksRecipe::default();
@@ -149,10 +161,59 @@ fn main() -> Result<()> {
                     }
                     (_, det) => (f64::NAN, det.as_ref().is_some_and(|d| d.partial)),
                 };
+                // The true area ratio (the area of Y that X covers / area(Y)), and with DIAG the
+                // search's distortion (X's distances scaled by the used and the true ratio) of
+                // the result and of the truth on the search's samples: which of the score and
+                // the search fails on a pair.
+                let mass = &y.basis.mass;
+                let true_ratio = (0..truth.len()).filter(|&v| truth[v]).map(|v| mass[v]).sum::<f64>()
+                    / mass.iter().sum::<f64>();
+                let diag = if std::env::var("DIAG").is_ok() {
+                    let (tx_, ty_) = (x.triangles().unwrap(), y.triangles().unwrap());
+                    let sx = funcorr::matching::search::SampleDistances::new(
+                        tx_,
+                        &x.basis.mass,
+                        &funcorr::geodesic::GraphGeodesics::mesh_edges(tx_).unwrap(),
+                        200,
+                    )
+                    .unwrap();
+                    let sy = funcorr::matching::search::SampleDistances::new(
+                        ty_,
+                        &y.basis.mass,
+                        &funcorr::geodesic::GraphGeodesics::mesh_edges(ty_).unwrap(),
+                        500,
+                    )
+                    .unwrap();
+                    // Truth of a vertex of X: the Y vertex of its nearest present template point.
+                    let xt: Vec<(usize, usize)> = present.iter().map(|&i| (tx[i].unwrap(), ty[i].unwrap())).collect();
+                    let xpos = x.positions().unwrap();
+                    let tpos: Vec<[f64; 3]> = xt.iter().map(|&(v, _)| xpos[v]).collect();
+                    let near = funcorr::spatial::nearest3(&tpos, xpos);
+                    let xs = &sx.samples.vertices;
+                    let true_images: Vec<usize> = xs.iter().map(|&v| xt[near[v]].1).collect();
+                    let images: Vec<usize> = xs.iter().map(|&v| r.map_xy[v]).collect();
+                    let used = r.partial.as_ref().and_then(|d| d.used_ratio).unwrap_or(1.0);
+                    let scaled = |q: f64| {
+                        let mut s2 = sx.clone();
+                        s2.distances = &s2.distances * faer::Scale(q.sqrt());
+                        s2
+                    };
+                    let (su, st) = (scaled(used), scaled(true_ratio));
+                    use funcorr::matching::search::distortion as dist;
+                    format!(
+                        ",\"diag\":{{\"used\":[{:.4},{:.4}],\"true\":[{:.4},{:.4}]}}",
+                        dist(&su, &sy, &images),
+                        dist(&su, &sy, &true_images),
+                        dist(&st, &sy, &images),
+                        dist(&st, &sy, &true_images)
+                    )
+                } else {
+                    String::new()
+                };
                 let chosen = r.candidates.as_ref().map_or(0, |(c, i)| c[*i].k);
                 let corrected = r.candidates.as_ref().is_some_and(|(c, i)| c[*i].corrected_from.is_some());
                 format!(
-                    "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"n\":{},\"ratio\":{:.3},\"partial\":{det},\"direct\":{d:.3},\"sym\":{s:.3},\"iou\":{iou:.3},\"points\":{},\"used\":{:.3},\"k\":{chosen},\"corrected\":{corrected},\"C\":[{},{}],\"seconds\":{secs:.2}}}",
+                    "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"n\":{},\"ratio\":{:.3},\"partial\":{det},\"direct\":{d:.3},\"sym\":{s:.3},\"iou\":{iou:.3},\"points\":{},\"used\":{:.3},\"k\":{chosen},\"corrected\":{corrected},\"C\":[{},{}],\"true_ratio\":{true_ratio:.3},\"seconds\":{secs:.2}{diag}}}",
                     x.n(),
                     x.area / y.area,
                     present.len(),

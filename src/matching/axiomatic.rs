@@ -174,6 +174,10 @@ pub struct Candidate {
     /// For a candidate made of a corrected sample map: the candidate it was corrected from, and
     /// whether by distances and data (true) or by distances alone.
     pub corrected_from: Option<(usize, bool)>,
+    /// For a candidate made of a sample map found from distances alone
+    /// ([`super::search::seeded_maps`], the partial path): its rank among those maps.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub seeded: Option<usize>,
 }
 
 impl Candidate {
@@ -190,6 +194,7 @@ impl Candidate {
             geodesic_corrected_distortion: f64::NAN,
             geodesic_corrected_orientation: f64::NAN,
             corrected_from: None,
+            seeded: None,
         }
     }
 }

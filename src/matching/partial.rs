@@ -11,6 +11,12 @@
 //! function of Y restricted to X lives in the first ≈ r·j functions of X, and C_yx is slanted,
 //! k_X ≈ r k_Y (Rodolà et al. 2017, "Partial functional correspondence"). So:
 //!
+//! 0. **Scale** ([`estimate_ratio`]): r is the area of Y that X covers over area(Y). It is
+//!    area(X) / area(Y) only when the shapes share a scale, which shapes scaled to a common
+//!    height do not (FAUST's poses differ in area by up to 1.9×), so r is estimated from maps of
+//!    X's search samples found by geodesic distances alone ([`search::seeded_maps`]) at a grid
+//!    of scales, the scale of the least distortion; it replaces area(X) / area(Y) when the two
+//!    differ by more than 10 % (the data, [`pair_wks`], are then computed again at it).
 //! 1. **Data** in common units: the descriptors F, G are divided by the norms of G's columns on
 //!    Y (not each by its own: F is a piece of G), plus signed descriptors (low-passed to
 //!    r · `signed_smoothing` functions of X and `signed_smoothing` of Y). [`pair_wks`] gives WKS
@@ -18,24 +24,28 @@
 //! 2. **Candidates**: the axiomatic energy ([`crate::fmap::energy`]) of a rectangular C_yx,
 //!    k_X = ⌈`slope` · r · k_Y⌉, at the sizes k_Y of `candidates`, X's eigenvalues divided by r
 //!    (the mask then follows the slanted diagonal).
-//! 3. **Basin search** ([`super::search`]): each candidate refined by a short rectangular ZoomOut
-//!    and scored by the geodesic distortion of its map on 200 samples of X against 500 anchors
-//!    of Y (X's distances in Y's units: distances on a part are at least those on the whole, so
-//!    the score is valid for a part), its data misfit and its orientation; its samples corrected
-//!    by L1 trilateration and the best correction probed as one more candidate.
-//! 4. **Refinement**: rectangular ZoomOut (k_Y up to `refine.k_final`, k_X following the slope)
-//!    on farthest-point samples of X, then the map of every vertex of X. No bijective polish: the
-//!    map is not a bijection.
+//! 3. **Basin search** ([`super::search`]): each candidate refined by a short ZoomOut for a
+//!    part (below) and scored by the geodesic distortion of its map on 200 samples of X against
+//!    500 anchors of Y (X's distances in Y's units: distances on a part are at least those on
+//!    the whole, so the score is valid for a part), its data misfit and its orientation; its
+//!    samples corrected by L1 trilateration and the best correction probed as one more
+//!    candidate (optionally also `seeded` maps by distances alone, off by default).
+//! 4. **Refinement**: ZoomOut for a part (k_Y up to `refine.k_final`) on farthest-point samples
+//!    of X, then rounds on every vertex of X. Each step pulls the point map back with twice the
+//!    slope's k_X (so that X's functions hold the restrictions of Y's almost exactly) and reads
+//!    the map the way a part's map is exact (`restricted_map`: rows of Ψ against rows of
+//!    Φ C_yx, not rows of Φ against Ψ C_yxᵀ, which would need X's functions carried to Y, cut
+//!    off at the edge of the covered region). No bijective polish: the map is not a bijection.
 //! 5. **Coverage** ([`coverage`]): a confidence on every vertex of Y that X covers it, from the
-//!    geodesic distance to the nearest image of X, thresholded so that the covered area matches
-//!    area(X).
+//!    geodesic distance to the nearest image of X, thresholded so that the covered area is
+//!    r · area(Y).
 //!
 //! **Detection** ([`detect`]): X is taken for a part when its boundary (total length of its
 //! boundary loops, / √area(X)) exceeds Y's (/ √area(Y)) by at least `min_boundary` and its area
 //! is at most `max_area_ratio` of Y's. The default 1.5 is loose on purpose: remeshed FAUST
 //! bodies differ in area by up to 1.9× between poses, and 17 of faust_r_partial's 97 parts have
-//! more area than their target; the boundary tells (whole benchmark shapes have none). Point clouds have no boundary to measure: only `--partial` (`PartialMode::Always`)
-//! sends them here.
+//! more area than their target; the boundary tells (whole benchmark shapes have none). Point
+//! clouds have no boundary to measure: only `--partial` (`PartialMode::Always`) sends them here.
 
 use faer::Mat;
 use rayon::prelude::*;
@@ -80,11 +90,37 @@ pub struct PartialOptions {
     pub min_boundary: f64,
     /// k_X = ⌈slope · r · k_Y⌉ for the rectangular functional maps C_yx (k_X × k_Y).
     pub slope: f64,
+    /// Sample maps found from distances alone ([`search::seeded_maps`]) probed as candidates
+    /// (default 0: none; they are blind to orientation, and on faust_r_partial they turned parts
+    /// by half a turn, EXPERIMENTS.md).
+    #[serde(default)]
+    pub seeded: usize,
+    /// The data F, G are [`pair_wks`] of this recipe: when the area ratio is re-estimated
+    /// ([`estimate_ratio()`]) they are computed again at the estimate (None: other data, kept).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wks: Option<WksRecipe>,
+    /// Estimate the area ratio from distance-only sample maps ([`estimate_ratio()`]; false: the
+    /// area ratio area(X) / area(Y)). On by default; on tosca_r_partial, whose shapes share a
+    /// scale, it picks too small a ratio on many pairs (EXPERIMENTS.md).
+    #[serde(default = "yes")]
+    pub estimate_ratio: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 impl Default for PartialOptions {
     fn default() -> Self {
-        PartialOptions { mode: PartialMode::Auto, max_area_ratio: 1.5, min_boundary: 0.25, slope: 1.0 }
+        PartialOptions {
+            mode: PartialMode::Auto,
+            max_area_ratio: 1.5,
+            min_boundary: 0.25,
+            slope: 1.0,
+            seeded: 0,
+            wks: None,
+            estimate_ratio: true,
+        }
     }
 }
 
@@ -158,10 +194,23 @@ pub fn detect(x: &PreparedShape, y: &PreparedShape, opts: &PartialOptions) -> De
 /// same band of frequencies. Not normalized per shape (the pipeline divides both by G's norms).
 /// F: n × q, G: m × q. Errors: fewer than two non-zero eigenvalues, a bad recipe.
 pub fn pair_wks(x: &PreparedShape, y: &PreparedShape, recipe: &WksRecipe) -> Result<(Descriptors, Descriptors)> {
+    pair_wks_at(x, y, recipe, x.area / y.area)
+}
+
+/// [`pair_wks`] with the area ratio r of X (in Y's units) to Y given: X's eigenvalues are taken
+/// as λ / r. Errors: as [`pair_wks`], and r not finite and > 0.
+pub fn pair_wks_at(
+    x: &PreparedShape,
+    y: &PreparedShape,
+    recipe: &WksRecipe,
+    r: f64,
+) -> Result<(Descriptors, Descriptors)> {
     if recipe.keep_every == 0 || recipe.eigenpairs < 2 || recipe.energies == 0 {
         return Err(Error::invalid("WKS recipe", "need energies ≥ 1, keep_every ≥ 1 and at least 2 eigenpairs"));
     }
-    let r = x.area / y.area;
+    if !(r.is_finite() && r > 0.0) {
+        return Err(Error::invalid("area ratio", format!("must be finite and > 0, got {r}")));
+    }
     let ky = recipe.eigenpairs.min(y.basis.k());
     let mu = &y.basis.eigenvalues[..ky];
     let top = mu[ky - 1];
@@ -285,6 +334,12 @@ pub struct PartialResult {
 /// Rounds of the final map read the other way (after the final ZoomOut).
 const FINAL_ROUNDS: usize = 3;
 
+/// The sample maps from distances alone ([`search::seeded_maps`]): check samples, triples kept
+/// and placed (at least [`PartialOptions::seeded`]), the relative tolerance of the distances.
+const SEED_CHECKS: usize = 6;
+const SEED_KEEP: usize = 12;
+const SEED_TOLERANCE: f64 = 0.15;
+
 /// The sizes of the rectangular maps: k_X for a given k_Y.
 #[derive(Clone, Copy)]
 struct Slope {
@@ -298,29 +353,78 @@ impl Slope {
     }
 }
 
-/// Rectangular ZoomOut in the pull-back direction on `samples` of X: the samples' images
-/// ([`refine::map_of_pullback`]), then the pull-back map of the next size (k_Y + step, k_X from
-/// the slope), up to k_Y = `ky_final`.
+/// The point map X → Y of the pull-back C_yx (k_X × k_Y) of a point map, read in the direction
+/// in which a part's map is exact: for every vertex i of X (`rows`, in that order, or all) the
+/// vertex j of Y whose row of Ψ_{k_Y} is nearest to row i of Φ_{k_X} C_yx, the functions of Y
+/// restricted to X as X's basis holds them (Π Ψ = Φ C_yx for the map Π when X's functions
+/// represent the restrictions). The other reading, rows of Φ against rows of Ψ C_yxᵀ
+/// ([`refine::map_of_pullback`], the whole pipeline's), needs X's functions carried to Y, and
+/// on a part they are carried to the covered region only: cut off at its edge, which Y's first
+/// functions cannot represent.
+fn restricted_map(
+    phi: faer::MatRef<f64>,
+    psi: faer::MatRef<f64>,
+    c: &Mat<f64>,
+    rows: Option<&[usize]>,
+) -> Result<Vec<usize>> {
+    let (kx, ky) = (c.nrows(), c.ncols());
+    let query = match rows {
+        Some(r) => Mat::from_fn(r.len(), kx, |s, a| phi[(r[s], a)]),
+        None => phi.subcols(0, kx).to_owned(),
+    };
+    let embedded = crate::linalg::mul(query.as_ref(), c.as_ref());
+    crate::pointwise::nearest_neighbors(psi.subcols(0, ky), embedded.as_ref())
+}
+
+/// How a point map is read off a functional map C_yx.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Reading {
+    /// [`restricted_map`] (rows of Ψ against rows of Φ C_yx), the pull-backs with twice the
+    /// slope's k_X: exact for a part, but every smooth map is near a fixed point, so it holds a
+    /// basin without pulling the map to an isometry.
+    Restricted,
+    /// [`refine::map_of_pullback`] (rows of Φ against rows of Ψ C_yxᵀ, ZoomOut's reading), the
+    /// pull-backs with the slope's k_X: X's functions carried to Y are cut off at the edge of the
+    /// covered region, which misleads it from a start far from the truth, but near the truth it
+    /// pulls the map to an isometry (C_yx towards orthonormal rows), as ZoomOut does.
+    Pushed,
+}
+
+/// Rectangular ZoomOut for a part on `samples` of X: the samples' images read off `c0` as
+/// `first` says, then, up to k_Y = `ky_final`, the pull-back map of the next size (k_Y + step)
+/// and its map read as `then` says; at least one step, so that the result is always a pull-back
+/// of a point map (of k_X from `slope`, twice it for [`Reading::Restricted`]).
+#[allow(clippy::too_many_arguments)]
 fn zoomout(
     x: &PreparedShape,
     y: &PreparedShape,
     samples: &Samples,
     c0: &Mat<f64>,
+    (first, then): (Reading, Reading),
     ky_final: usize,
     step: usize,
     slope: Slope,
 ) -> Result<Mat<f64>> {
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
+    let wide = Slope { ratio: 2.0 * slope.ratio, max_x: slope.max_x };
     let mut c = c0.clone();
     let mut ky = c.ncols();
     let step = step.max(1);
-    while ky < ky_final {
+    let mut reading = first;
+    loop {
         crate::progress::check()?;
-        let map = refine::map_of_pullback(phi, psi, c.as_ref(), Some(&samples.vertices), Scope::Exact)?;
-        ky = (ky + step).min(ky_final);
-        c = refine::pullback(phi, psi, samples, &map, slope.kx(ky), ky)?;
+        let map = match reading {
+            Reading::Pushed => refine::map_of_pullback(phi, psi, c.as_ref(), Some(&samples.vertices), Scope::Exact)?,
+            Reading::Restricted => restricted_map(phi, psi, &c, Some(&samples.vertices))?,
+        };
+        reading = then;
+        ky = (ky + step).min(ky_final.max(ky));
+        let kx = if then == Reading::Restricted { wide.kx(ky) } else { slope.kx(ky) };
+        c = refine::pullback(phi, psi, samples, &map, kx, ky)?;
+        if ky >= ky_final {
+            return Ok(c);
+        }
     }
-    Ok(c)
 }
 
 /// The search's data (as the whole pipeline's), X's distances in Y's units.
@@ -381,33 +485,114 @@ pub fn partial_pipeline(
     if !(r0.is_finite() && r0 > 0.0) {
         return Err(Error::invalid("shapes", format!("area ratio {r0} of X to Y")));
     }
-    let surfaces = Surfaces { tx, ty, px, nx, py, ny };
-    // The shapes' scales may differ (FAUST's bodies, remeshed, differ in area by up to 1.9×
-    // between poses): r is re-estimated from the first pass's map, and the pipeline run again
-    // when the estimate differs from the area ratio by more than 10 %.
-    let (first, estimate) = pass(x, y, f, g, p, o, &surfaces, r0)?;
-    if (estimate / r0 - 1.0).abs() > 0.1 {
-        let (mut second, _) = pass(x, y, f, g, p, o, &surfaces, estimate)?;
-        first.stages.iter().for_each(|(n, t)| second.stages.push((format!("{n} (first pass)"), *t)));
-        return Ok(second);
-    }
-    Ok(first)
+    let surfaces = Surfaces { px, nx, py, ny };
+    let t = std::time::Instant::now();
+    crate::progress::stage("search samples")?;
+    let (sx, sy) = rayon::join(
+        || SampleDistances::new(tx, &x.basis.mass, &GraphGeodesics::mesh_edges(tx)?, p.search.samples.max(3)),
+        || SampleDistances::new(ty, &y.basis.mass, &GraphGeodesics::mesh_edges(ty)?, p.search.anchors.max(3)),
+    );
+    let (sx, sy) = (sx?, sy?);
+    let search_seconds = t.elapsed().as_secs_f64();
+    // The shapes' scales may differ (FAUST's bodies, remeshed and scaled to a common height,
+    // differ in area by up to 1.9× between poses): r is estimated from sample maps found by
+    // distances alone ([`estimate_ratio`]), and the estimate replaces the area ratio when the
+    // two differ by more than 10 %.
+    let t = std::time::Instant::now();
+    crate::progress::stage("area ratio")?;
+    let guess = if o.estimate_ratio { estimate_ratio(&sx, &sy, r0, p.search.rounds)? } else { r0 };
+    let differs = |a: f64, b: f64| (a / b - 1.0).abs() > 0.1;
+    let r = if differs(guess, r0) { guess } else { r0 };
+    let ratio_seconds = t.elapsed().as_secs_f64();
+    let (f1, g1) = match &o.wks {
+        Some(recipe) if r != r0 => pair_wks_at(x, y, recipe, r)?,
+        _ => (f.clone(), g.clone()),
+    };
+    let mut result = pass(x, y, &f1, &g1, p, o, &surfaces, (&sx, &sy), r)?;
+    result.stages.insert(0, ("area ratio".to_string(), ratio_seconds));
+    result.stages.insert(0, ("search samples".to_string(), search_seconds));
+    Ok(result)
 }
 
-/// The surfaces of both shapes at unit area: triangles, positions and normals.
+/// The area ratio of a map of X's samples: (median over the pairs of samples of
+/// d_Y(π(s_i), π(s_j)) / d_X(s_i, s_j))², X's distances at unit area (`sx`), over the pairs
+/// whose images lie farther apart than four covering radii of Y's anchors (`sy`), at most 1;
+/// None without such pairs. `images` are vertex ids of Y.
+fn ratio_of_map(sx: &SampleDistances, sy: &SampleDistances, images: &[usize]) -> Option<f64> {
+    let anchors: Vec<usize> = images.iter().map(|&v| sy.nearest[v] as usize).collect();
+    let floor = 4.0 * sy.radius;
+    let mut ratios = Vec::new();
+    for i in 0..anchors.len() {
+        for j in (i + 1)..anchors.len() {
+            let (a, b) = (sx.distances[(i, j)], sy.distances[(anchors[i], anchors[j])]);
+            if a.is_finite() && b.is_finite() && a > 0.0 && b > floor {
+                ratios.push(b / a);
+            }
+        }
+    }
+    ratios.sort_by(|a, b| a.total_cmp(b));
+    ratios.get(ratios.len() / 2).map(|&q| (q * q).min(1.0)).filter(|q| q.is_finite() && *q > 0.0)
+}
+
+/// A map of X's samples (vertex ids of Y) and its geodesic distortion.
+type SampleMap = (Vec<usize>, f64);
+
+/// X's sample distances in Y's units for the area ratio r: lengths at unit area scale by √r.
+fn scaled(sx: &SampleDistances, r: f64) -> SampleDistances {
+    let root = r.sqrt();
+    let mut s = sx.clone();
+    s.distances = &s.distances * faer::Scale(root);
+    s.radius *= root;
+    s
+}
+
+/// The area ratio r (the area of Y that X covers / area(Y)) from maps of X's samples (`sx`, at
+/// unit area) to Y's anchors (`sy`) found by distances alone ([`search::seeded_maps`], blind to
+/// orientation, which the scale does not need). The scale of X against Y is unknown (shapes
+/// scaled to a common height differ in area between poses): at every r of the geometric grid
+/// r0 · 1.15^j, j = −5 … 5, r ≤ 1, the best map by distances at that r and its geodesic
+/// distortion E (relative to X's distances, so comparable between scales); the r of the lowest
+/// E, then r from that map (`ratio_of_map`) while it changes by 3 % or more, twice at most.
+/// Returns `r0` when no map is found.
+pub fn estimate_ratio(sx: &SampleDistances, sy: &SampleDistances, r0: f64, rounds: usize) -> Result<f64> {
+    let best_at = |r: f64| -> Result<Option<SampleMap>> {
+        Ok(search::seeded_maps(&scaled(sx, r), sy, None, SEED_CHECKS, 1, SEED_TOLERANCE, rounds)?.into_iter().next())
+    };
+    let grid: Vec<f64> = (-5..=5).map(|j| r0 * 1.15f64.powi(j)).filter(|&r| r <= 1.0).collect();
+    let found: Vec<(f64, Option<SampleMap>)> =
+        grid.iter().map(|&r| best_at(r).map(|m| (r, m))).collect::<Result<_>>()?;
+    let Some((mut r, Some((mut map, _)))) = found
+        .into_iter()
+        .filter(|(_, m)| m.is_some())
+        .min_by(|a, b| a.1.as_ref().map(|m| m.1).unwrap().total_cmp(&b.1.as_ref().map(|m| m.1).unwrap()))
+    else {
+        return Ok(r0);
+    };
+    for _ in 0..2 {
+        let Some(next) = ratio_of_map(sx, sy, &map) else { break };
+        let done = (next / r - 1.0).abs() < 0.03;
+        r = next;
+        if done {
+            break;
+        }
+        match best_at(r)? {
+            Some((m, _)) => map = m,
+            None => break,
+        }
+    }
+    Ok(r)
+}
+
+/// The surfaces of both shapes at unit area: positions and normals.
 struct Surfaces<'a> {
-    tx: &'a crate::shape::TriMesh,
-    ty: &'a crate::shape::TriMesh,
     px: &'a [[f64; 3]],
     nx: &'a [[f64; 3]],
     py: &'a [[f64; 3]],
     ny: &'a [[f64; 3]],
 }
 
-/// One pass of [`partial_pipeline`] with the area ratio r (area of X in Y's units / area of Y);
-/// returns its result and the area ratio estimated from its map: (median over pairs of X's
-/// search samples of d_Y(π(s_i), π(s_j)) / d_X(s_i, s_j))², at unit areas, over the pairs
-/// farther apart than four covering radii of the anchors.
+/// One pass of [`partial_pipeline`] with the area ratio r (area of X in Y's units / area of Y)
+/// and the search's samples of X (distances at unit area) and anchors of Y.
 #[allow(clippy::too_many_arguments)]
 fn pass(
     x: &PreparedShape,
@@ -417,10 +602,14 @@ fn pass(
     p: &AxiomaticPipeline,
     o: &PartialOptions,
     surfaces: &Surfaces,
+    (sx, sy): (&SampleDistances, &SampleDistances),
     r: f64,
-) -> Result<(PartialResult, f64)> {
-    let Surfaces { tx, ty, px, nx, py, ny } = *surfaces;
+) -> Result<PartialResult> {
+    let Surfaces { px, nx, py, ny } = *surfaces;
     let slope = Slope { ratio: o.slope * r, max_x: x.basis.k() };
+    // The pull-backs of point maps: twice as many functions of X as the slope gives, so that the
+    // restrictions of Y's functions are represented almost exactly.
+    let wide = Slope { ratio: 2.0 * slope.ratio, max_x: slope.max_x };
     let mut stages = Vec::new();
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
 
@@ -456,15 +645,9 @@ fn pass(
     let t = std::time::Instant::now();
     crate::progress::stage("search samples")?;
     let probe_samples = samples_of(x, p.probe.samples)?;
-    let (sx, sy) = rayon::join(
-        || SampleDistances::new(tx, &x.basis.mass, &GraphGeodesics::mesh_edges(tx)?, p.search.samples.max(3)),
-        || SampleDistances::new(ty, &y.basis.mass, &GraphGeodesics::mesh_edges(ty)?, p.search.anchors.max(3)),
-    );
-    let (mut sx, sy) = (sx?, sy?);
-    // X's distances in Y's units: lengths at unit area scale by √r.
-    let root = r.sqrt();
-    sx.distances = &sx.distances * faer::Scale(root);
-    sx.radius *= root;
+    // X's distances in Y's units.
+    let sx = scaled(sx, r);
+    let sy = sy.clone();
     let neighbours = search::sample_neighbours(&sx, 8);
     let descriptors = search::descriptor_distances(&sx, &sy, fx.values.as_ref(), gy.values.as_ref());
     let s = PartialSearch { x: sx, y: sy, neighbours, descriptors };
@@ -472,10 +655,20 @@ fn pass(
 
     let t = std::time::Instant::now();
     crate::progress::stage("candidate probes")?;
-    let probe = |c: &Mat<f64>, k: usize, correct: bool| -> Result<Probe> {
-        let c = zoomout(x, y, &probe_samples, c, p.probe.k_final.max(c.ncols()), p.probe.step, slope)?;
+    let probe = |c: &Mat<f64>, fitted: bool, k: usize, correct: bool| -> Result<Probe> {
+        let first = if fitted { Reading::Pushed } else { Reading::Restricted };
+        let c = zoomout(
+            x,
+            y,
+            &probe_samples,
+            c,
+            (first, Reading::Restricted),
+            p.probe.k_final.max(c.ncols()),
+            p.probe.step,
+            slope,
+        )?;
         let xs = &s.x.samples.vertices;
-        let images = refine::map_of_pullback(phi, psi, c.as_ref(), Some(xs), Scope::Exact)?;
+        let images = restricted_map(phi, psi, &c, Some(xs))?;
         let mut candidate = Candidate::unscored(k);
         candidate.distortion = search::distortion(&s.x, &s.y, &images);
         candidate.orientation = search::orientation(px, nx, py, ny, xs, &images, &s.neighbours);
@@ -504,7 +697,7 @@ fn pass(
         Ok(Probe { candidate, c, images, corrected })
     };
     let mut probed: Vec<Probe> =
-        fits.par_iter().zip(p.candidates.par_iter()).map(|(c, &k)| probe(c, k, true)).collect::<Result<_>>()?;
+        fits.par_iter().zip(p.candidates.par_iter()).map(|(c, &k)| probe(c, true, k, true)).collect::<Result<_>>()?;
     stages.push(("candidate probes".to_string(), t.elapsed().as_secs_f64()));
 
     // The correction, as in the whole pipeline: for each form, the corrected sample map of the
@@ -542,13 +735,35 @@ fn pass(
             correction = Some(report);
         }
     }
+    // Sample maps found from distances alone (module docs, step 3), the best SEEDED probed.
+    let seeded = if o.seeded > 0 {
+        search::seeded_maps(
+            &s.x,
+            &s.y,
+            Some(&s.descriptors),
+            SEED_CHECKS,
+            SEED_KEEP.max(o.seeded),
+            SEED_TOLERANCE,
+            p.search.rounds,
+        )?
+    } else {
+        Vec::new()
+    };
+    // (corrected from, seeded rank, the sample map).
+    type Start<'a> = (Option<(usize, bool)>, Option<usize>, &'a Vec<usize>);
+    let starts_of_samples: Vec<Start> = hybrids
+        .iter()
+        .map(|(from, joint, h)| (Some((*from, *joint)), None, h))
+        .chain(seeded.iter().take(o.seeded).enumerate().map(|(i, (m, _))| (None, Some(i), m)))
+        .collect();
     let k0 = p.candidates.iter().copied().min().unwrap_or(1).min(s.x.len() / 4).max(1);
-    let extra: Vec<(Probe, Mat<f64>)> = hybrids
+    let extra: Vec<(Probe, Mat<f64>)> = starts_of_samples
         .par_iter()
-        .map(|(from, joint, hybrid)| {
-            let c0 = refine::pullback(phi, psi, &s.x.samples, hybrid, slope.kx(k0), k0)?;
-            let mut q = probe(&c0, k0, false)?;
-            q.candidate.corrected_from = Some((*from, *joint));
+        .map(|(from, rank, hybrid)| {
+            let c0 = refine::pullback(phi, psi, &s.x.samples, hybrid, wide.kx(k0), k0)?;
+            let mut q = probe(&c0, false, k0, false)?;
+            q.candidate.corrected_from = *from;
+            q.candidate.seeded = *rank;
             Ok((q, c0))
         })
         .collect::<Result<_>>()?;
@@ -575,20 +790,18 @@ fn pass(
     } else {
         let samples = samples_of(x, p.refine.samples)?;
         let ky = p.refine.k_final.max(c_start.ncols()).min(y.basis.k());
-        let c = zoomout(x, y, &samples, &c_start, ky, p.refine.step, slope)?;
-        let map = refine::map_of_pullback(phi, psi, c.as_ref(), None, Scope::Exact)?;
-        // The final map read the other way, FINAL_ROUNDS times (rows of Ψ against those of Φ C_yx, the restriction
-        // of Y's functions to X), from the pull-back of that map with twice as many functions
-        // of X as the slope gives: with a map near the truth the restrictions are then
-        // represented almost exactly.
-        let wide = Slope { ratio: 2.0 * slope.ratio, max_x: slope.max_x };
+        // Read as the probe found it: ZoomOut's reading ([`Reading::Pushed`]) from here loses the
+        // basin on real pairs (EXPERIMENTS.md).
+        let c =
+            zoomout(x, y, &samples, &c_start, (Reading::Restricted, Reading::Restricted), ky, p.refine.step, slope)?;
+        let map = restricted_map(phi, psi, &c, None)?;
+        // FINAL_ROUNDS more at the final size on every vertex of X.
         let all = Samples::all(&x.basis.mass);
         let (mut c, mut map) = (c, map);
         for _ in 0..FINAL_ROUNDS {
             crate::progress::check()?;
             c = refine::pullback(phi, psi, &all, &map, wide.kx(ky), ky)?;
-            let embedded = crate::linalg::mul(phi.subcols(0, c.nrows()), c.as_ref());
-            map = crate::pointwise::nearest_neighbors(psi.subcols(0, ky), embedded.as_ref())?;
+            map = restricted_map(phi, psi, &c, None)?;
         }
         (c, map)
     };
@@ -598,25 +811,7 @@ fn pass(
     crate::progress::stage("coverage")?;
     let coverage = coverage(y, &map_xy, r)?;
     stages.push(("coverage".to_string(), t.elapsed().as_secs_f64()));
-    // The scale of the map: d_Y / d_X on the search samples (X's distances at unit area).
-    let images: Vec<usize> = s.x.samples.vertices.iter().map(|&v| s.y.nearest[map_xy[v]] as usize).collect();
-    let mut ratios = Vec::new();
-    let floor = 4.0 * s.y.radius;
-    for i in 0..images.len() {
-        for j in (i + 1)..images.len() {
-            let (a, b) = (s.x.distances[(i, j)] / root, s.y.distances[(images[i], images[j])]);
-            if a.is_finite() && b.is_finite() && a * root > floor && b > 0.0 {
-                ratios.push(b / a);
-            }
-        }
-    }
-    ratios.sort_by(|a, b| a.total_cmp(b));
-    let estimate = match ratios.get(ratios.len() / 2) {
-        Some(&q) if q.is_finite() && q > 0.0 => (q * q).min(1.0),
-        _ => r,
-    };
-    let result = PartialResult { map_xy, c_yx, c_fit, candidates, chosen, stages, coverage, correction, area_ratio: r };
-    Ok((result, estimate))
+    Ok(PartialResult { map_xy, c_yx, c_fit, candidates, chosen, stages, coverage, correction, area_ratio: r })
 }
 
 /// The confidence (length m, in [0, 1]) that X covers each vertex of Y, from the images

@@ -367,6 +367,151 @@ pub fn correct(
     Ok((corrected, Correction { trace, moved, radius: x.radius }))
 }
 
+/// Sample maps of X's samples to Y's anchors found from scratch by the consistency of distances
+/// alone (no functional map, no descriptor): the basin search's candidates come from spectral
+/// fits, and when the data of a part mislead every fit the same way (the legs and hips of a
+/// lower body taken for the arms and shoulders) no correction reaches the right basin.
+///
+/// Three reference samples r₁, r₂, r₃ of X far apart (r₁ an end of the longest distance
+/// between samples, r₂ the other end, r₃ the farthest from both), and `checks` more by the same
+/// farthest rule. Every triple of anchors (a₁, a₂, a₃) of Y whose distances agree with those of
+/// the references within δ(d) = `tolerance` · d + 2 ρ_Y (ρ_Y the anchors' covering radius) is
+/// scored by how well the check samples can be placed against it,
+/// Σ_c min_a Σ_t |d_X(c, r_t) − d_Y(a, a_t)| (the references' own misfits added); the `keep`
+/// best triples, no two with all three anchors within δ of each other, are placed: every sample
+/// at the anchor that best fits its distances to the references and checks (the checks at their
+/// best anchors), then corrected ([`correct`] with `desc`, at most `rounds` rounds). Returns the
+/// corrected images (vertex ids of Y) with their geodesic distortion E, best first. Cost: a · a
+/// for the triples' candidates, a · 3 more for each consistent triple and `checks` · a · 3 for
+/// the best 64 · `keep` of them, then as [`correct`] for each kept one.
+pub fn seeded_maps(
+    x: &SampleDistances,
+    y: &SampleDistances,
+    desc: Option<&Mat<f64>>,
+    checks: usize,
+    keep: usize,
+    tolerance: f64,
+    rounds: usize,
+) -> Result<Vec<(Vec<usize>, f64)>> {
+    let (dx, dy) = (&x.distances, &y.distances);
+    let (s, a) = (x.len(), y.len());
+    if s < 3 || a < 3 || keep == 0 {
+        return Ok(Vec::new());
+    }
+    let fin = |d: f64| if d.is_finite() { d } else { -1.0 };
+    // The references and checks: farthest first, each next the farthest from those chosen.
+    let ecc: Vec<f64> = (0..s).map(|i| (0..s).map(|j| fin(dx[(i, j)])).fold(0.0, f64::max)).collect();
+    let first = (0..s).max_by(|&i, &j| ecc[i].total_cmp(&ecc[j])).unwrap_or(0);
+    let mut refs = vec![first];
+    while refs.len() < (3 + checks).min(s) {
+        let next = (0..s)
+            .filter(|i| !refs.contains(i))
+            .max_by(|&i, &j| {
+                let m = |k: usize| refs.iter().map(|&r| dx[(k, r)]).fold(f64::INFINITY, f64::min);
+                fin(m(i)).total_cmp(&fin(m(j)))
+            })
+            .expect("samples left");
+        refs.push(next);
+    }
+    let (r, c) = (&refs[..3], &refs[3..]);
+    if r.iter().enumerate().any(|(i, &p)| r[i + 1..].iter().any(|&q| !dx[(p, q)].is_finite())) {
+        return Ok(Vec::new());
+    }
+    let tol = |d: f64| tolerance * d + 2.0 * y.radius;
+    let dy32 = finite_f32(dy);
+    let col = |k: usize| &dy32[k * a..(k + 1) * a];
+    // The misfit of a check sample k against a triple: min over anchors of Σ_t |d_X(k, r_t) − d_Y(a, a_t)|.
+    let check_cost = |k: usize, t: [usize; 3], cost: &mut Vec<f32>| -> f64 {
+        cost.iter_mut().for_each(|v| *v = 0.0);
+        for (p, &an) in t.iter().enumerate() {
+            let d = dx[(k, r[p])];
+            if d.is_finite() {
+                let d = d as f32;
+                cost.iter_mut().zip(col(an)).for_each(|(v, e)| *v += (d - e).abs());
+            }
+        }
+        f64::from(cost.iter().copied().fold(f32::INFINITY, f32::min))
+    };
+    // Every consistent triple scored by its own misfits and the first check, in parallel over a₁.
+    let (d12, d13, d23) = (dx[(r[0], r[1])], dx[(r[0], r[2])], dx[(r[1], r[2])]);
+    let mut triples: Vec<(f64, [usize; 3])> = (0..a)
+        .into_par_iter()
+        .flat_map_iter(|a1| {
+            let mut out = Vec::new();
+            let mut cost = vec![0.0f32; a];
+            // The anchors at the right distance from a₁ for r₃ (in increasing order).
+            let thirds: Vec<usize> = (0..a).filter(|&a3| a3 != a1 && (dy[(a1, a3)] - d13).abs() <= tol(d13)).collect();
+            for a2 in 0..a {
+                let e12 = (dy[(a1, a2)] - d12).abs();
+                if a2 == a1 || e12 > tol(d12) {
+                    continue;
+                }
+                for &a3 in &thirds {
+                    let (e13, e23) = ((dy[(a1, a3)] - d13).abs(), (dy[(a2, a3)] - d23).abs());
+                    if a3 == a2 || e23 > tol(d23) {
+                        continue;
+                    }
+                    let first = c.first().map_or(0.0, |&k| check_cost(k, [a1, a2, a3], &mut cost));
+                    out.push((e12 + e13 + e23 + first, [a1, a2, a3]));
+                }
+            }
+            out.into_iter()
+        })
+        .collect();
+    triples.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
+    // The best of them scored by every check.
+    triples.truncate(64 * keep);
+    let mut triples: Vec<(f64, [usize; 3])> = triples
+        .into_par_iter()
+        .map(|(v, t)| {
+            let mut cost = vec![0.0f32; a];
+            (v + c.iter().skip(1).map(|&k| check_cost(k, t, &mut cost)).sum::<f64>(), t)
+        })
+        .collect();
+    triples.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
+    let mut kept: Vec<[usize; 3]> = Vec::new();
+    let near = |p: &[usize; 3], q: &[usize; 3]| (0..3).all(|t| dy[(p[t], q[t])] <= tol(0.0));
+    for (_, t) in &triples {
+        if kept.len() == keep {
+            break;
+        }
+        if !kept.iter().any(|k| near(k, t)) {
+            kept.push(*t);
+        }
+    }
+    // Place every sample against the references and the checks at their best anchors.
+    let place = |fixed: &[(usize, usize)]| -> Vec<usize> {
+        (0..s)
+            .map(|i| {
+                let mut cost = vec![0.0f32; a];
+                for &(k, an) in fixed {
+                    let t = dx[(i, k)];
+                    if t.is_finite() {
+                        let t = t as f32;
+                        cost.iter_mut().zip(col(an)).for_each(|(v, d)| *v += (t - d).abs());
+                    }
+                }
+                (0..a).min_by(|&p, &q| cost[p].total_cmp(&cost[q])).unwrap_or(0)
+            })
+            .collect()
+    };
+    let mut maps: Vec<(Vec<usize>, f64)> = kept
+        .par_iter()
+        .map(|t| {
+            let mut fixed: Vec<(usize, usize)> = (0..3).map(|k| (r[k], t[k])).collect();
+            let checks_placed = place(&fixed);
+            c.iter().for_each(|&k| fixed.push((k, checks_placed[k])));
+            let anchors = place(&fixed);
+            let images: Vec<usize> = anchors.iter().map(|&an| y.samples.vertices[an]).collect();
+            let (fixed, _) = correct(x, y, &images, desc, rounds)?;
+            let e = distortion(x, y, &fixed);
+            Ok((fixed, e))
+        })
+        .collect::<Result<_>>()?;
+    maps.sort_by(|p, q| p.1.total_cmp(&q.1));
+    Ok(maps)
+}
+
 /// Whether a sample's image moved from the vertex `before` to `after` of Y by more than the
 /// covering radius of X's samples `x` (as counted in [`Correction::moved`]; distances between
 /// Y's anchors `y`).
@@ -411,5 +556,24 @@ mod tests {
         assert!(!has_moved(&side, &side, wrong[20], fixed[20]));
         assert!(SampleDistances::new(&x, &mass, &g, 2).is_err());
         assert!(correct(&side, &side, &wrong[1..], None, 1).is_err());
+    }
+
+    /// Maps found from distances alone: on a shape against itself the best fits the distances
+    /// (the identity scores 0), best first; and from them the scale of a shape against itself
+    /// is 1 (area ratio), from a start 40 % off.
+    #[test]
+    fn maps_from_distances_alone_fit_the_distances() {
+        let x = bumpy_sphere(3);
+        let mass = x.vertex_areas();
+        let g = GraphGeodesics::mesh_edges(&x).unwrap();
+        let side = SampleDistances::new(&x, &mass, &g, 60).unwrap();
+        let maps = seeded_maps(&side, &side, None, 4, 3, 0.1, 5).unwrap();
+        assert!(!maps.is_empty() && maps.len() <= 3);
+        assert!(maps.windows(2).all(|w| w[0].1 <= w[1].1));
+        assert!(maps[0].1 < 0.05, "distortion of the best map {}", maps[0].1);
+        assert!(maps.iter().all(|(m, e)| m.len() == 60 && (distortion(&side, &side, m) - e).abs() < 1e-12));
+        let r = crate::matching::partial::estimate_ratio(&side, &side, 0.6, 5).unwrap();
+        assert!((r - 1.0).abs() < 0.05, "area ratio {r}");
+        assert!(seeded_maps(&side, &side, None, 4, 0, 0.1, 5).unwrap().is_empty());
     }
 }
