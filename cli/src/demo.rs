@@ -106,7 +106,7 @@ pub(crate) fn demo_match(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&T
     outln!("  allowing the left-right flip: mean ×100 = {:.2}", 100.0 * sym.mean);
     write_map_files(out, &r.map_xy, false)?;
     let view = funcorr::viz::View::parse(DEFAULT_VIEW)?;
-    write_colour_transfer(out, x, y, &r.map_yx, Some((parse_size(DEFAULT_SIZE)?, &view)))?;
+    write_colour_transfer(out, x, y, &r.map_yx, r.coverage.as_deref(), Some((parse_size(DEFAULT_SIZE)?, &view)))?;
     outln!("  colour transfer: X.ply, Y.ply (per-vertex colours) and render.png");
     let name = |(n, _): (&str, &[u8])| n.trim_end_matches(".off").to_string();
     crate::view::write_match_view(

@@ -116,6 +116,11 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
         && args.data.parse::<funcorr::descriptors::spec::PairDataSpec>()?
             == funcorr::descriptors::spec::PairDataSpec::WksRecipe
         && funcorr::matching::partial::detect(&px, &py, &opts.partial).partial;
+    // ... and they are computed again when the pipeline re-estimates the area ratio.
+    let mut opts = opts;
+    if partial_wks {
+        opts.partial.wks = Some(funcorr::descriptors::signatures::WksRecipe::default());
+    }
     let (f, g) = st.run("data", || {
         if partial_wks {
             funcorr::matching::partial::pair_wks(&px, &py, &funcorr::descriptors::signatures::WksRecipe::default())
@@ -186,7 +191,14 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
             };
             let p = out.join("report.json");
             funcorr::io::write_atomic(&p, funcorr::io::to_json_sorted(&report)?)?;
-            write_colour_transfer(out, x, y, &r.map_yx, (!args.no_render).then_some((size, &view)))?;
+            write_colour_transfer(
+                out,
+                x,
+                y,
+                &r.map_yx,
+                r.coverage.as_deref(),
+                (!args.no_render).then_some((size, &view)),
+            )?;
             if !args.no_html {
                 let name = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
                 crate::view::write_match_view(

@@ -36,20 +36,29 @@ pub(crate) fn parse_size(s: &str) -> Result<(u32, u32)> {
 }
 
 /// The colour-transfer outputs of a map: X coloured by position, Y by pulling the colours back
-/// through `map_yx`; X.ply, Y.ply and (unless `size` is None) render.png.
+/// through `map_yx` (for a part X of Y, faded to grey where `coverage` is low); X.ply, Y.ply and
+/// (unless `size` is None) render.png.
 pub(crate) fn write_colour_transfer(
     out: &Path,
     x: &Shape,
     y: &Shape,
     map_yx: &[usize],
+    coverage: Option<&[f64]>,
     render: Option<((u32, u32), &funcorr::viz::View)>,
 ) -> Result<()> {
     let (Some(mut dx), Some(mut dy)) = (mesh_data(x), mesh_data(y)) else {
         return Ok(());
     };
     let colors_x = funcorr::viz::position_colors(&dx.vertices);
-    let colors_y = funcorr::viz::pull_back_colors(&colors_x, map_yx)
+    let mut colors_y = funcorr::viz::pull_back_colors(&colors_x, map_yx)
         .ok_or_else(|| Error::invalid("map", "the map Y → X points outside X"))?;
+    // A part X of Y: the vertices of Y it does not cover fade to grey with their confidence.
+    if let Some(cov) = coverage.filter(|c| c.len() == colors_y.len()) {
+        for (c, &w) in colors_y.iter_mut().zip(cov) {
+            let w = w.clamp(0.0, 1.0);
+            *c = c.map(|v| (w * f64::from(v) + (1.0 - w) * 200.0).round() as u8);
+        }
+    }
     if let Some(((w, h), view)) = render {
         use funcorr::viz::{render_pair, write_png, ColoredShape};
         let sx = ColoredShape { vertices: &dx.vertices, faces: &dx.faces, colors: &colors_x };

@@ -257,7 +257,10 @@ class MatchResult:
     ``C_method`` the method's own before refinement; ``coefficients`` (A, B) of the completion
     method's subspace form (k' × k), else None. ``X``, ``Y``: the prepared shapes (reusable).
     ``report``: options, sizes, solver and per-stage seconds (the report.json of
-    ``funcorr match``). ``evaluation``: the last :meth:`evaluate`'s result (None before).
+    ``funcorr match``; ``report["partial"]`` the partial detection). ``coverage`` (m,) float64:
+    when X was matched as a part of Y, for every vertex of Y the confidence in [0, 1] that X
+    covers it (≥ ½: covered; ``coverage.npy`` of ``funcorr match``), else None.
+    ``evaluation``: the last :meth:`evaluate`'s result (None before).
     """
 
     map_xy: _np.ndarray
@@ -270,6 +273,7 @@ class MatchResult:
     q: int
     X: PreparedShape
     Y: PreparedShape
+    coverage: Optional[_np.ndarray] = None
     evaluation: Optional[Dict[str, Any]] = None
 
     def __repr__(self) -> str:
@@ -461,7 +465,8 @@ def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str
     ``completion_commutativity_k``, ``completion_prior``, ``l1_samples``, ``l1_precision``
     (``"f32"|"f64"``; ``l1_f32=True`` is the same as ``"f32"``),
     ``map_check_every``, ``map_tolerance``, ``precondition`` (``"off"|"quadratic"|"full"``),
-    ``xi_stages``, ``multiscale``, ``near_above``, ``near_cells``; the Laplacian options of
+    ``xi_stages``, ``multiscale``, ``near_above``, ``near_cells``; ``partial`` (True:
+    ``--partial``, X is a part of Y; False: ``--no-partial``; None, the default: detected); the Laplacian options of
     :func:`prepare`; ``seg_function``, ``threshold``, ``hks_time``; ``cache_dir``. An unknown
     keyword raises TypeError; a bad value ValueError naming it.
 
@@ -488,6 +493,7 @@ def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str
         q=r["q"],
         X=r["X"],
         Y=r["Y"],
+        coverage=r["coverage"],
     )
 
 

@@ -115,7 +115,7 @@ fn match_shapes<'py>(
             ));
         }
     }
-    let opts_run = opts.clone();
+    let mut opts_run = opts.clone();
     let (px, py_, f, g, r) = crate::compute_reporting(py, progress, move || {
         let prep = |s: Side| -> funcorr::Result<Arc<PreparedShape>> {
             match s {
@@ -138,7 +138,23 @@ fn match_shapes<'py>(
         let (px, py_) = rayon::join(|| prep(sx), || prep(sy));
         let (px, py_) = (px?, py_?);
         funcorr::progress::stage("data")?;
+        // As `funcorr match`: a part of Y (detected or partial=True) with the default WKS gets
+        // them at the same energies on both shapes (matching::partial::pair_wks).
+        let partial_wks = |spec: &funcorr::descriptors::spec::PairDataSpec| {
+            opts_run.method == funcorr::matching::Method::Axiomatic
+                && *spec == funcorr::descriptors::spec::PairDataSpec::WksRecipe
+                && funcorr::matching::partial::detect(&px, &py_, &opts_run.partial).partial
+        };
         let (f, g) = match data {
+            Data::Spec(spec) if partial_wks(&spec) => {
+                // Computed again at the area ratio the pipeline estimates.
+                opts_run.partial.wks = Some(funcorr::descriptors::signatures::WksRecipe::default());
+                funcorr::matching::partial::pair_wks(
+                    &px,
+                    &py_,
+                    &funcorr::descriptors::signatures::WksRecipe::default(),
+                )?
+            }
             Data::Spec(spec) => spec.functions(px.parts(), py_.parts(), &seg)?,
             Data::Given(f, g) => (f, g),
         };
@@ -155,6 +171,10 @@ fn match_shapes<'py>(
             out.set_item("coefficients", (arrays::mat_out(py, a.as_ref()), arrays::mat_out(py, b.as_ref())))?
         }
         None => out.set_item("coefficients", py.None())?,
+    }
+    match &r.coverage {
+        Some(c) => out.set_item("coverage", arrays::vec_out(py, c.clone()))?,
+        None => out.set_item("coverage", py.None())?,
     }
     let stages = PyList::empty(py);
     for (name, secs) in &r.stages {

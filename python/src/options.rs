@@ -343,8 +343,21 @@ pub(crate) fn match_options(o: &mut Opts, rich: bool) -> PyResult<(MatchOptions,
         Extraction::Nn,
         &[("nn", Extraction::Nn), ("argmax", Extraction::Argmax), ("fmap", Extraction::Fmap)],
     )?;
+    // partial=True is `--partial`, partial=False `--no-partial`; None detects.
+    let partial = funcorr::matching::partial::PartialOptions {
+        mode: match o.flag("partial")? {
+            Some(true) => funcorr::matching::partial::PartialMode::Always,
+            Some(false) => funcorr::matching::partial::PartialMode::Never,
+            None => base.partial.mode,
+        },
+        ..base.partial
+    };
+    if partial.mode == funcorr::matching::partial::PartialMode::Always && method != Method::Axiomatic {
+        return Err(value_error("partial", "partial matching is a path of the axiomatic method (the default)"));
+    }
     let opts = MatchOptions {
         method,
+        partial,
         k: k.unwrap_or(base.k),
         commutativity,
         completion,
