@@ -12,7 +12,7 @@
 //! ```
 //! `MODE=always|auto|never` (default `always`: `--partial`); `SLOPE=s` the slope of the
 //! rectangular maps (default 1); `SEEDED=n` the sample maps from distances alone probed (default
-//! 0: none); `NO_ESTIMATE=1` the area ratio as it is (no estimate from distance-only maps);
+//! 0: none); `ESTIMATE=1` the area ratio estimated from distance-only maps (default: as it is);
 //! `STRIDE=s` every s-th pair of the range. `DETECT=1`: no matching, the detection of every shape of the
 //! pairs against the pair's other shape (for whole data sets: none should be detected).
 //!
@@ -69,8 +69,8 @@ fn main() -> Result<()> {
     if let Ok(s) = std::env::var("SLOPE") {
         opts.partial.slope = s.parse().expect("SLOPE");
     }
-    if std::env::var("NO_ESTIMATE").is_ok() {
-        opts.partial.estimate_ratio = false;
+    if std::env::var("ESTIMATE").is_ok() {
+        opts.partial.estimate_ratio = true;
     }
     if let Ok(s) = std::env::var("SEEDED") {
         opts.partial.seeded = s.parse().expect("SEEDED");

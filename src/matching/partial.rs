@@ -16,7 +16,8 @@
 //!    height do not (FAUST's poses differ in area by up to 1.9×), so r is estimated from maps of
 //!    X's search samples found by geodesic distances alone ([`search::seeded_maps`]) at a grid
 //!    of scales, the scale of the least distortion; it replaces area(X) / area(Y) when the two
-//!    differ by more than 10 % (the data, [`pair_wks`], are then computed again at it).
+//!    differ by more than 10 % (the data, [`pair_wks`], are then computed again at it). Off by
+//!    default (`PartialOptions::estimate_ratio`): it errs low on too many pairs.
 //! 1. **Data** in common units: the descriptors F, G are divided by the norms of G's columns on
 //!    Y (not each by its own: F is a piece of G), plus signed descriptors (low-passed to
 //!    r · `signed_smoothing` functions of X and `signed_smoothing` of Y). [`pair_wks`] gives WKS
@@ -99,15 +100,11 @@ pub struct PartialOptions {
     /// ([`estimate_ratio()`]) they are computed again at the estimate (None: other data, kept).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub wks: Option<WksRecipe>,
-    /// Estimate the area ratio from distance-only sample maps ([`estimate_ratio()`]; false: the
-    /// area ratio area(X) / area(Y)). On by default; on tosca_r_partial, whose shapes share a
-    /// scale, it picks too small a ratio on many pairs (EXPERIMENTS.md).
-    #[serde(default = "yes")]
+    /// Estimate the area ratio from distance-only sample maps ([`estimate_ratio()`]; false, the
+    /// default: the area ratio area(X) / area(Y)). Off by default: it picks too small a ratio
+    /// on many pairs, and both partial sets are better without it (EXPERIMENTS.md).
+    #[serde(default)]
     pub estimate_ratio: bool,
-}
-
-fn yes() -> bool {
-    true
 }
 
 impl Default for PartialOptions {
@@ -119,7 +116,7 @@ impl Default for PartialOptions {
             slope: 1.0,
             seeded: 0,
             wks: None,
-            estimate_ratio: true,
+            estimate_ratio: false,
         }
     }
 }
