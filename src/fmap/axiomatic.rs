@@ -241,5 +241,16 @@ mod tests {
         }
         assert!(axiomatic_sizes(&x, &y, &opts, &[]).is_err());
         assert!(axiomatic_sizes(&x, &y, &opts, &[0, 4]).is_err());
+        // The pull-backs of the map X → Y: the energy's map from Y's data to X's, its constant
+        // column ±√(area_X / area_Y); errors name each shape by its own name.
+        let back = axiomatic_pullbacks(&x, &y, &opts, &[8]).unwrap();
+        let (c_yx, _) = &back[0];
+        assert_eq!(c_yx.0, axiomatic(&y, &x, &AxiomaticOptions { k: 8, ..opts }).unwrap().0);
+        let ratio = (basis.mass.iter().sum::<f64>() / basis_y.mass.iter().sum::<f64>()).sqrt();
+        assert!((c_yx.0[(0, 0)].abs() - ratio).abs() < 1e-9 * ratio, "{} {ratio}", c_yx.0[(0, 0)]);
+        let small = eigen_basis(&lap_y, &SpectralOptions::new(6), None).unwrap().0;
+        let y6 = ShapeData { basis: &small, ..y };
+        let e = axiomatic_pullbacks(&x, &y6, &opts, &[8]).unwrap_err().to_string();
+        assert!(e.contains("the basis size of Y"), "{e}");
     }
 }

@@ -9,12 +9,18 @@
 //! given with [`MatchSettings::set`] and print the errors, which name options through a
 //! [`Spelling`] ([`Keywords`] for Rust and Python).
 //!
-//! **Adding an option**: one row in the `match_settings!` invocation below (its key, type and
-//! documentation: the field of [`MatchSettings`], its row in [`MATCH_OPTIONS`] and its arm of
-//! [`MatchSettings::set`] follow), then its effect in [`MatchSettings::resolve_as`] (and a check in
-//! [`MatchOptions::validate_as`] if it has one); on the command line a field of the same name
-//! in the CLI's `PipelineArgs` (its help text). The tests of the CLI fail until the flag exists
-//! and sets the option of its name; Python takes the keyword from the table.
+//! **Adding an option** (e.g. a flag `--partial`): one row in the `match_settings!` invocation
+//! below (`partial: bool,` with its documentation: the field of [`MatchSettings`], its row in
+//! [`MATCH_OPTIONS`] and its arm of [`MatchSettings::set`] follow from it), its effect in
+//! [`MatchSettings::resolve_as`] (a field of [`MatchOptions`] if the pipeline needs a new one) and
+//! its check in [`MatchOptions::validate_as`]; then the field of the same name, with its help
+//! text, in the CLI's `PipelineArgs` (`cli/src/args.rs`) and the keyword in the docstring of
+//! `funcorr.match` (`python/funcorr/__init__.py`). Nothing else: the CLI hands its fields over by
+//! name and Python its keywords by the table's kinds. The CLI's test
+//! `every_flag_is_the_library_option_of_its_name` fails until the flag exists and sets the option
+//! of its name, `python/tests/test_options.py` until the keyword is documented. A value of a new
+//! kind (a file, say) needs its [`Kind`], [`Value`] and conversion here, and one arm in the CLI's
+//! `settings` and in Python's `match_settings`.
 //!
 //! One module over 600 lines: the table, what each option means (its resolution), the checks
 //! and the basis demand are one concern, the meaning of the options, changed together.
