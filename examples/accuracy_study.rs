@@ -503,7 +503,7 @@ fn main() -> Result<()> {
             let t = Instant::now();
             let run = || -> Result<matching::MatchResult> {
                 let (f, g) = (wks(&x.prepared, v)?, wks(&y.prepared, v)?);
-                matching::run_prepared(&x.prepared, &y.prepared, &f, &g, &v.opts)
+                matching::run(&x.prepared, &y.prepared, &f, &g, &v.opts)
             };
             let line = match run() {
                 Ok(r) => {

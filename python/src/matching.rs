@@ -9,11 +9,12 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
 use funcorr::descriptors::Descriptors;
+use funcorr::matching::Keywords;
 use funcorr::prepared::PreparedShape;
 use funcorr::shape::Shape;
 
 use crate::arrays::{self, value_error, I64s};
-use crate::prepared::{cache_arg, check_k, laplacian_choice, prepared_arg, prepared_py, PyPrepared};
+use crate::prepared::{cache_arg, laplacian_choice, prepared_arg, prepared_py, PyPrepared};
 use crate::{compute, options};
 
 /// A shape argument of `match`: prepared already, or to be prepared with `k` eigenpairs.
@@ -81,7 +82,10 @@ fn match_shapes<'py>(
         Data::Given(..) => true,
     };
     let mut o = options::Opts::new(options)?;
-    let (opts, basis_k, who) = options::match_options(&mut o, rich)?;
+    let settings = options::match_settings(&mut o)?;
+    let opts = settings.resolve(rich).map_err(options::library_error)?;
+    let demand = settings.basis_demand(&opts, &Keywords).map_err(options::library_error)?;
+    let basis_k = demand.size;
     let preparation_keys = ["laplacian", "cloud_neighbours", "knn", "vertex_weights", "sigma", "cache_dir"];
     let given: Vec<&str> = preparation_keys.iter().copied().filter(|k| o.has(k)).collect();
     let choice = laplacian_choice(&mut o)?;
@@ -97,7 +101,10 @@ fn match_shapes<'py>(
     }
     for (s, name) in [(&sx, "X"), (&sy, "Y")] {
         if let Side::Raw(shape) = s {
-            check_k(shape, basis_k, &who, &format!("{who} (for {name})"))?;
+            if basis_k >= shape.n_vertices() {
+                let e = settings.too_small(name, shape.n_vertices(), &opts, &demand, &Keywords);
+                return Err(options::library_error(e));
+            }
         }
         if needs_surface(&opts) {
             check_surface(s, choice, name)?;
@@ -142,7 +149,7 @@ fn match_shapes<'py>(
             Data::Spec(spec) => spec.functions(px.parts(), py_.parts(), &seg)?,
             Data::Given(f, g) => (f, g),
         };
-        let r = funcorr::matching::run_prepared(&px, &py_, &f, &g, &opts_run)?;
+        let r = funcorr::matching::run(&px, &py_, &f, &g, &opts_run)?;
         Ok((px, py_, f, g, r))
     })?;
     let out = PyDict::new(py);
@@ -216,8 +223,9 @@ fn match_basis_size(data: &Bound<'_, PyAny>, options: Option<&Bound<'_, PyDict>>
         Data::Given(..) => true,
     };
     let mut o = options::Opts::new(options)?;
-    let (_, k, _) = options::match_options(&mut o, rich)?;
-    Ok(k)
+    let settings = options::match_settings(&mut o)?;
+    let opts = settings.resolve(rich).map_err(options::library_error)?;
+    Ok(settings.basis_demand(&opts, &Keywords).map_err(options::library_error)?.size)
 }
 
 /// A functional map argument C (k_Y × k_X, coefficients on X → coefficients on Y).
@@ -553,6 +561,7 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fmap_from_map, m)?)?;
     m.add_function(wrap_pyfunction!(axiomatic_fmap, m)?)?;
     m.add_function(wrap_pyfunction!(match_basis_size, m)?)?;
+    m.add_function(wrap_pyfunction!(options::match_option_keys, m)?)?;
     m.add_function(wrap_pyfunction!(soft_map, m)?)?;
     Ok(())
 }

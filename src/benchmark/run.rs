@@ -99,7 +99,7 @@ pub fn run_pair(ds: &Dataset, x: &PreparedShape, y: &PreparedShape, opts: &Bench
         .iter()
         .map(|method| {
             let score = || -> Result<PairScore> {
-                let r = matching::run_prepared(&x.prepared, &y.prepared, &f, &g, &method.options)?;
+                let r = matching::run(&x.prepared, &y.prepared, &f, &g, &method.options)?;
                 let errors = eval::hard_errors(&r.map_xy, &gt, &*geo, y.mesh().total_area())?;
                 let mut stages = vec![("data".to_string(), data_seconds)];
                 stages.extend(r.stages);

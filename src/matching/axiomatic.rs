@@ -3,8 +3,8 @@
 //! 1. **Data**: the given descriptors (normalized, [`crate::descriptors::normalized`]) and
 //!    `signed` orientation descriptors built from them ([`crate::descriptors::signed`]), which
 //!    change sign under the left–right symmetry the others cannot see.
-//! 2. **Functional maps**: the exact minimizer of the axiomatic energy
-//!    ([`crate::fmap::axiomatic`]) for the pull-back C_yx of the map X → Y (so that the map is
+//! 2. **Functional maps**: the exact minimizer of the axiomatic energy for the pull-back C_yx
+//!    of the map X → Y ([`crate::fmap::axiomatic::axiomatic_pullbacks`]; so that the map is
 //!    read off in the direction ZoomOut refines it), at several sizes k (`candidates`).
 //! 3. **Selection**: every candidate is refined cheaply (ZoomOut to `probe.k_final` on
 //!    `probe.samples` vertices) and the one whose point map has the smallest metric distortion
@@ -18,8 +18,9 @@
 //!    ([`crate::refine::bijective_polish`]: both point maps and both functional maps, with the
 //!    coupling and bijectivity terms of Ren et al. 2021).
 //!
-//! Map direction: the result is `map_xy` (for every vertex of X a vertex of Y) and its pull-back
-//! C_yx (k × k, functions on Y → functions on X).
+//! Map direction: X → Y throughout. Every functional map of the pipeline, from the fits to the
+//! result, is a pull-back [`Pullback`] (C_yx, k × k, functions on Y → functions on X); the result
+//! is `map_xy` (for every vertex of X a vertex of Y) and its pull-back.
 
 use faer::Mat;
 use rayon::prelude::*;
@@ -27,8 +28,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::descriptors::{self, Descriptors};
 use crate::error::{Error, Result};
-use crate::fmap::axiomatic::{axiomatic_sizes, AxiomaticOptions, ShapeData};
+use crate::fmap::axiomatic::{axiomatic_pullbacks, AxiomaticOptions, ShapeData};
 use crate::fmap::energy::{EnergyWeights, Orientation};
+use crate::fmap::Pullback;
 use crate::geodesic::GraphGeodesics;
 use crate::prepared::PreparedShape;
 use crate::refine::{self, Scope, ZoomOutOptions};
@@ -199,10 +201,10 @@ impl Candidate {
 pub struct AxiomaticResult {
     /// The point map X → Y (length n).
     pub map_xy: Vec<usize>,
-    /// The pull-back functional map of `map_xy` (final size × final size, Y → X).
-    pub c_yx: Mat<f64>,
-    /// The chosen candidate's functional map before refinement (k × k, Y → X).
-    pub c_fit: Mat<f64>,
+    /// The pull-back functional map of `map_xy` (final size × final size).
+    pub c_yx: Pullback,
+    /// The chosen candidate's pull-back before refinement (k × k).
+    pub c_fit: Pullback,
     /// Every candidate, in the order of the options.
     pub candidates: Vec<Candidate>,
     /// Index of the chosen one.
@@ -309,10 +311,10 @@ pub fn axiomatic_pipeline(
     let dy = ShapeData { basis: &y.basis, gradients: y.gradients(), descriptors: &gy };
     stages.push(("descriptors".to_string(), t.elapsed().as_secs_f64()));
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
-    // Candidates: C_yx is the map of the energy from Y's data to X's.
+    // Candidates: the pull-backs of the fits.
     let t = std::time::Instant::now();
     crate::progress::stage("functional maps")?;
-    let fits: Vec<Mat<f64>> = axiomatic_sizes(&dy, &dx, &p.fit, &p.candidates)?.into_iter().map(|r| r.0).collect();
+    let fits: Vec<Pullback> = axiomatic_pullbacks(&dx, &dy, &p.fit, &p.candidates)?.into_iter().map(|r| r.0).collect();
     stages.push(("functional maps".to_string(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
     crate::progress::stage("search samples")?;
@@ -398,7 +400,7 @@ pub fn axiomatic_pipeline(
     let t = std::time::Instant::now();
     crate::progress::stage("correction")?;
     let mut correction = None;
-    let mut starts: Vec<Mat<f64>> = fits;
+    let mut starts: Vec<Pullback> = fits;
     if let Some(s) = &search {
         let originals = probed.len();
         // The hybrid sample map of each form (cheap), then their probes, in parallel.
@@ -439,10 +441,10 @@ pub fn axiomatic_pipeline(
             }
         }
         let k0 = p.candidates.iter().copied().min().unwrap_or(1).min(s.x.len() / 4).max(1);
-        let extra: Vec<(Probe, Mat<f64>)> = hybrids
+        let extra: Vec<(Probe, Pullback)> = hybrids
             .par_iter()
             .map(|(from, joint, hybrid)| {
-                let c0 = refine::pullback(phi, psi, &s.x.samples, hybrid, k0, k0)?;
+                let c0 = Pullback(refine::pullback(phi, psi, &s.x.samples, hybrid, k0, k0)?);
                 let mut q = ctx.probe(&c0, k0, false)?;
                 q.candidate.corrected_from = Some((*from, *joint));
                 Ok((q, c0))
@@ -496,10 +498,10 @@ struct ProbeContext<'a> {
 }
 
 impl ProbeContext<'_> {
-    /// ZoomOut from the start `c` (C_yx, k × k) to the probe size on the probe samples, the map
+    /// ZoomOut from the start `c` (k × k) to the probe size on the probe samples, the map
     /// where it is scored, its orientation and distortion (geodesic on the search samples, or of
     /// the edges), and with `correct` the correction of its search samples.
-    fn probe(&self, c: &Mat<f64>, k: usize, correct: bool) -> Result<Probe> {
+    fn probe(&self, c: &Pullback, k: usize, correct: bool) -> Result<Probe> {
         let (x, y, p) = (self.x, self.y, self.p);
         let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
         let (tx, py, ny) = (x.triangles(), y.positions(), y.normals());
@@ -587,7 +589,7 @@ impl ProbeContext<'_> {
                 }
             }
         }
-        Ok(Probe { candidate, c: Some(c), images, corrected })
+        Ok(Probe { candidate, c: Some(Pullback(c)), images, corrected })
     }
 }
 
@@ -608,7 +610,7 @@ const ORIENTATION_NEIGHBOURS: usize = 8;
 /// of the search samples and their correction.
 struct Probe {
     candidate: Candidate,
-    c: Option<Mat<f64>>,
+    c: Option<Pullback>,
     images: Option<Vec<usize>>,
     /// The corrections by distances and data, and by distances alone.
     corrected: [Option<(Vec<usize>, search::Correction)>; 2],
@@ -645,19 +647,19 @@ fn choose(candidates: &[Candidate], orientation: Orientation, score: impl Fn(&Ca
         .unwrap_or(0)
 }
 
-/// The final refinement from `c_start` (C_yx): ZoomOut (or its bijective variant) to
-/// `p.refine.k_final`, then the polish. Returns (C_yx, map_xy, the samples of the restricted
-/// final searches) and appends its stage times.
+/// The final refinement from the pull-back `c_start`: ZoomOut (or its bijective variant) to
+/// `p.refine.k_final`, then the polish. Returns (the final pull-back, map_xy, the samples of the
+/// restricted final searches) and appends its stage times.
 #[allow(clippy::type_complexity)]
 fn refine_from(
     x: &PreparedShape,
     y: &PreparedShape,
-    c_start: Mat<f64>,
-    c_fit: &Mat<f64>,
+    c_start: Pullback,
+    c_fit: &Pullback,
     p: &AxiomaticPipeline,
     near_positions: &Option<refine::Near>,
     stages: &mut Vec<(String, f64)>,
-) -> Result<(Mat<f64>, Vec<usize>, Option<(Samples, Samples)>)> {
+) -> Result<(Pullback, Vec<usize>, Option<(Samples, Samples)>)> {
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
     let t = std::time::Instant::now();
     crate::progress::stage("zoomout")?;
@@ -672,16 +674,17 @@ fn refine_from(
     let (c, map) = match &sy {
         Some(sy) if p.bijective > 0.0 => {
             let o = refine::BijectiveOptions {
-                k_final: p.refine.k_final.max(c_start.nrows()),
+                k_final: p.refine.k_final.max(c_start.k_x()),
                 step: p.refine.step,
                 bijectivity: p.bijective,
             };
-            let c_xy0 = c_start.transpose().to_owned();
+            // The start of the pull-back of the inverse map: C_yxᵀ (orthonormal maps).
+            let c_xy0 = c_start.transposed();
             let (c, m, _) = refine::bijective_zoomout(phi, psi, &sx, sy, c_start.as_ref(), c_xy0.as_ref(), &o)?;
             (c, Some(m))
         }
         _ => {
-            let o = ZoomOutOptions { k_final: p.refine.k_final.max(c_start.nrows()), step: p.refine.step };
+            let o = ZoomOutOptions { k_final: p.refine.k_final.max(c_start.k_x()), step: p.refine.step };
             if p.polish > 0 {
                 // The polish reads the point map off itself.
                 let scope = match (near_positions, &sy) {
@@ -699,7 +702,7 @@ fn refine_from(
     };
     stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
     match map {
-        Some(m) if p.polish == 0 => Ok((c, m, None)),
+        Some(m) if p.polish == 0 => Ok((Pullback(c), m, None)),
         _ => {
             let t = std::time::Instant::now();
             crate::progress::stage("polish")?;
@@ -714,7 +717,7 @@ fn refine_from(
             };
             let (c, map) = refine::bijective_polish(phi, psi, &sx, &sy, c.as_ref(), p.polish, scope)?;
             stages.push(("polish".to_string(), t.elapsed().as_secs_f64()));
-            Ok((c, map, near.map(|_| (sx, sy))))
+            Ok((Pullback(c), map, near.map(|_| (sx, sy))))
         }
     }
 }
@@ -811,7 +814,7 @@ mod tests {
     /// vertices and recover the true map.
     #[test]
     fn restricted_searches_agree_with_the_exact_ones() {
-        use crate::matching::{run_prepared, MatchOptions, Method};
+        use crate::matching::{run, MatchOptions, Method};
         let (x, y, truth, _) = pair();
         let r = WksRecipe::default();
         let (f, g) = (wks_recipe(&x.basis, &r).unwrap(), wks_recipe(&y.basis, &r).unwrap());
@@ -820,7 +823,7 @@ mod tests {
         p.refine.samples = 200;
         let run = |p: &AxiomaticPipeline| {
             let o = MatchOptions { method: Method::Axiomatic, axiomatic: p.clone(), ..MatchOptions::default() };
-            run_prepared(&x, &y, &f, &g, &o).unwrap()
+            run(&x, &y, &f, &g, &o).unwrap()
         };
         let exact = run(&p);
         p.near = NearSearch { above_pairs: 0, cells: 8 };
@@ -841,7 +844,7 @@ mod tests {
     #[test]
     fn the_completion_prior_tells_the_map_from_its_mirror_image() {
         use crate::completion::{CompletionOptions, Scaling};
-        use crate::matching::{run_prepared, Extraction, MatchOptions, Method, Refine};
+        use crate::matching::{run, Extraction, MatchOptions, Method, Refine};
         let (x, y, truth, mirrored) = pair();
         let r = WksRecipe::default();
         let (f, g) = (wks_recipe(&x.basis, &r).unwrap(), wks_recipe(&y.basis, &r).unwrap());
@@ -861,7 +864,7 @@ mod tests {
             axiomatic: AxiomaticPipeline { fit: AxiomaticOptions { orientation, ..p.fit }, ..p.clone() },
             ..MatchOptions::default()
         };
-        let res = run_prepared(&x, &y, &fx, &gy, &opts(Orientation::Preserve)).unwrap();
+        let res = run(&x, &y, &fx, &gy, &opts(Orientation::Preserve)).unwrap();
         let Some(crate::matching::SolverReport::Completion(report)) = &res.solver else {
             panic!("no completion report")
         };
@@ -869,13 +872,13 @@ mod tests {
         assert!(prior > 0.0, "the prior is part of the objective: {:?}", report.terms());
         let (good, bad) = (agreement(&res.map_xy, &truth), agreement(&res.map_xy, &mirrored));
         assert!(good > 0.5 && bad < 0.1, "preserve: recovered {good} of the true map, {bad} of its mirror image");
-        let res = run_prepared(&x, &y, &fx, &gy, &opts(Orientation::Reverse)).unwrap();
+        let res = run(&x, &y, &fx, &gy, &opts(Orientation::Reverse)).unwrap();
         let (good, bad) = (agreement(&res.map_xy, &truth), agreement(&res.map_xy, &mirrored));
         assert!(bad > 0.5 && good < 0.1, "reverse: recovered {bad} of the mirror image, {good} of the true map");
         // Without its energy, or in a vertex form, the weight is an error.
         let mut o = opts(Orientation::Preserve);
         o.completion.form = crate::completion::Form::LowNorm;
-        assert!(run_prepared(&x, &y, &fx, &gy, &o).is_err());
+        assert!(run(&x, &y, &fx, &gy, &o).is_err());
     }
 
     #[test]
