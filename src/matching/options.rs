@@ -30,7 +30,7 @@
 
 use std::fmt::Display;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::axiomatic::NearSearch;
 use super::{completion_defaults, Extraction, MatchOptions, Method, Refine, DEFAULT_BASIS_SIZE};
@@ -106,6 +106,9 @@ trait OptionValue: Sized {
     const KIND: Kind;
     /// The value, or why it is not one of this type (the caller names the option).
     fn from_value(v: Value) -> std::result::Result<Self, String>;
+    /// The value as given by name: the inverse of `from_value` (Err for a value no name gives,
+    /// such as a [`Mask::Resolvent`] of another γ built in Rust).
+    fn to_value(&self) -> std::result::Result<Value, String>;
 }
 
 fn expected(what: &str, v: &Value) -> String {
@@ -120,12 +123,18 @@ impl OptionValue for usize {
             v => Err(expected("a non-negative integer", &v)),
         }
     }
+    fn to_value(&self) -> std::result::Result<Value, String> {
+        Ok(Value::Size(*self))
+    }
 }
 
 impl OptionValue for u64 {
     const KIND: Kind = Kind::Size;
     fn from_value(v: Value) -> std::result::Result<Self, String> {
         usize::from_value(v).map(|s| s as u64)
+    }
+    fn to_value(&self) -> std::result::Result<Value, String> {
+        usize::try_from(*self).map(Value::Size).map_err(|_| format!("{self} does not fit a size"))
     }
 }
 
@@ -139,6 +148,9 @@ impl OptionValue for f64 {
             v => Err(expected("a number", &v)),
         }
     }
+    fn to_value(&self) -> std::result::Result<Value, String> {
+        Ok(Value::Number(*self))
+    }
 }
 
 impl OptionValue for bool {
@@ -148,6 +160,9 @@ impl OptionValue for bool {
             Value::Flag(b) => Ok(b),
             v => Err(expected("a bool", &v)),
         }
+    }
+    fn to_value(&self) -> std::result::Result<Value, String> {
+        Ok(Value::Flag(*self))
     }
 }
 
@@ -159,6 +174,9 @@ impl OptionValue for Vec<usize> {
             Value::Size(s) => Ok(vec![s]),
             v => Err(expected("a list of sizes", &v)),
         }
+    }
+    fn to_value(&self) -> std::result::Result<Value, String> {
+        Ok(Value::Sizes(self.clone()))
     }
 }
 
@@ -173,6 +191,13 @@ macro_rules! choices {
                     $($name => Ok($value),)+
                     _ => Err(format!("{s:?}: expected one of {}", [$($name),+].join(", "))),
                 }
+            }
+            fn to_value(&self) -> std::result::Result<Value, String> {
+                [$($name),+]
+                    .into_iter()
+                    .find(|n| Self::from_value(Value::Choice(n.to_string())).as_ref() == Ok(self))
+                    .map(|n| Value::Choice(n.to_string()))
+                    .ok_or_else(|| format!("{self:?} has no name"))
             }
         }
     )*};
@@ -203,8 +228,10 @@ macro_rules! match_settings {
     ($($(#[doc = $doc:literal])* $key:ident: $ty:ty,)*) => {
         /// The options of the pipeline by name, each unset (`None`: the default of the method and
         /// data) or given; [`MatchSettings::resolve`] turns them into [`MatchOptions`]. Serialized
-        /// with the keys of [`MATCH_OPTIONS`].
-        #[derive(Clone, Debug, Default, PartialEq, Serialize)]
+        /// (serde) as a map of the options given, by the keys of [`MATCH_OPTIONS`] and the names
+        /// of their values (`{"method": "axiomatic", "zoomout_to": 90, "candidates": [20, 30]}`),
+        /// so a settings file written by one front end is read back by any other.
+        #[derive(Clone, Debug, Default, PartialEq)]
         pub struct MatchSettings {
             $($(#[doc = $doc])* pub $key: Option<$ty>,)*
         }
@@ -225,6 +252,15 @@ macro_rules! match_settings {
                     _ => return Err(Error::invalid(key, "not an option of the matching pipeline")),
                 }
                 Ok(())
+            }
+
+            /// The value of option `key` as given by name, None when unset. Errors: an unknown
+            /// key, a value no name gives (built in Rust, not by [`MatchSettings::set`]).
+            pub fn get(&self, key: &str) -> Result<Option<Value>> {
+                match key {
+                    $(stringify!($key) => self.$key.as_ref().map(OptionValue::to_value).transpose().map_err(|m| Error::invalid(key, m)),)*
+                    _ => Err(Error::invalid(key, "not an option of the matching pipeline")),
+                }
             }
         }
     };
@@ -324,6 +360,81 @@ match_settings! {
     w_orientation: f64,
     /// Laplacian-commutativity mask of the axiomatic energy (default resolvent).
     mask: Mask,
+}
+
+impl Value {
+    /// The value in JSON: a number, a bool, a list of numbers or a name.
+    fn to_json(&self) -> serde_json::Value {
+        match self {
+            Value::Size(s) => (*s).into(),
+            Value::Number(x) => (*x).into(),
+            Value::Flag(b) => (*b).into(),
+            Value::Sizes(s) => s.clone().into(),
+            Value::Choice(c) => c.clone().into(),
+        }
+    }
+
+    /// The value of an option of kind `kind` written in JSON, or why it is not one.
+    fn from_json(kind: Kind, j: &serde_json::Value) -> std::result::Result<Value, String> {
+        let size = |j: &serde_json::Value| {
+            j.as_u64()
+                .and_then(|s| usize::try_from(s).ok())
+                .ok_or_else(|| format!("expected a non-negative integer, got {j}"))
+        };
+        Ok(match kind {
+            Kind::Size => Value::Size(size(j)?),
+            Kind::Number => Value::Number(j.as_f64().ok_or_else(|| format!("expected a number, got {j}"))?),
+            Kind::Flag => Value::Flag(j.as_bool().ok_or_else(|| format!("expected true or false, got {j}"))?),
+            Kind::Sizes => match j.as_array() {
+                Some(a) => Value::Sizes(a.iter().map(size).collect::<std::result::Result<_, _>>()?),
+                None => Value::Size(size(j)?),
+            },
+            Kind::Choice(_) => {
+                Value::Choice(j.as_str().ok_or_else(|| format!("expected a name, got {j}"))?.to_string())
+            }
+        })
+    }
+}
+
+impl MatchSettings {
+    /// The settings of a JSON object `{key: value}` (keys of [`MATCH_OPTIONS`]; `null`: unset).
+    /// Errors name the option: an unknown key, a value of another kind or out of its choices.
+    pub fn from_json(object: &serde_json::Map<String, serde_json::Value>) -> Result<MatchSettings> {
+        let mut s = MatchSettings::default();
+        for (key, j) in object {
+            let Some(spec) = MATCH_OPTIONS.iter().find(|o| o.key == key) else {
+                return Err(Error::invalid(key, "not an option of the matching pipeline"));
+            };
+            if !j.is_null() {
+                s.set(spec.key, Value::from_json(spec.kind, j).map_err(|m| Error::invalid(key, m))?)?;
+            }
+        }
+        Ok(s)
+    }
+
+    /// The options given, as a JSON object by key (the inverse of [`MatchSettings::from_json`]).
+    pub fn to_json(&self) -> Result<serde_json::Map<String, serde_json::Value>> {
+        let mut m = serde_json::Map::new();
+        for spec in MATCH_OPTIONS {
+            if let Some(v) = self.get(spec.key)? {
+                m.insert(spec.key.to_string(), v.to_json());
+            }
+        }
+        Ok(m)
+    }
+}
+
+impl Serialize for MatchSettings {
+    fn serialize<S: serde::Serializer>(&self, ser: S) -> std::result::Result<S::Ok, S::Error> {
+        self.to_json().map_err(serde::ser::Error::custom)?.serialize(ser)
+    }
+}
+
+impl<'de> Deserialize<'de> for MatchSettings {
+    fn deserialize<D: serde::Deserializer<'de>>(de: D) -> std::result::Result<Self, D::Error> {
+        let object = serde_json::Map::<String, serde_json::Value>::deserialize(de)?;
+        MatchSettings::from_json(&object).map_err(serde::de::Error::custom)
+    }
 }
 
 /// The completion optimizer's stopping rule on the point map: checked every `every` iterations
@@ -739,20 +850,20 @@ mod tests {
     /// the field of its name and no other, every field has its row.
     #[test]
     fn every_option_of_the_table_sets_the_field_of_its_name() {
-        let fields: Vec<String> = match json(&MatchSettings::default()) {
-            serde_json::Value::Object(m) => m.keys().cloned().collect(),
-            _ => unreachable!("a struct"),
-        };
-        let mut keys: Vec<String> = MATCH_OPTIONS.iter().map(|s| s.key.to_string()).collect();
-        keys.sort();
-        let mut sorted = fields.clone();
-        sorted.sort();
-        assert_eq!(keys, sorted);
+        // Every field by its Debug name: `Some(` once per field given.
+        let fields = format!("{:?}", MatchSettings::default()).matches(": None").count();
+        assert_eq!(fields, MATCH_OPTIONS.len());
         for spec in MATCH_OPTIONS {
             let mut s = MatchSettings::default();
             s.set(spec.key, example(spec.kind)).unwrap();
-            let changed: Vec<&String> = fields.iter().filter(|f| !json(&s)[f.as_str()].is_null()).collect();
-            assert_eq!(changed, [spec.key], "{}", spec.key);
+            let debug = format!("{s:?}");
+            assert_eq!(debug.matches(": None").count(), fields - 1, "{}", spec.key);
+            assert!(debug.contains(&format!(" {}: Some(", spec.key)), "{}: {debug}", spec.key);
+            // Given by name, read back by name: the JSON form has this one key.
+            let j = json(&s);
+            assert_eq!(j.as_object().unwrap().keys().collect::<Vec<_>>(), [spec.key], "{}", spec.key);
+            let back: MatchSettings = serde_json::from_value(j).unwrap();
+            assert_eq!(back, s, "{}", spec.key);
         }
         let mut s = MatchSettings::default();
         assert!(s.set("zoomout-to", Value::Size(3)).unwrap_err().to_string().contains("zoomout-to"));
@@ -760,6 +871,29 @@ mod tests {
         assert_eq!(s.form, Some(Form::LowNorm));
         assert!(e.unwrap_err().to_string().contains("expected one of subspace, fixed-rank, low-rank, low-norm"));
         assert!(s.set("k", Value::Number(2.5)).is_err());
+    }
+
+    /// A settings file: every option given round-trips, errors name the option.
+    #[test]
+    fn settings_round_trip_through_json_by_name() {
+        let mut s = MatchSettings::default();
+        for spec in MATCH_OPTIONS {
+            s.set(spec.key, example(spec.kind)).unwrap();
+        }
+        let text = serde_json::to_string(&s).unwrap();
+        assert!(text.contains(r#""form":"low-norm""#) && text.contains(r#""candidates":[7,9]"#), "{text}");
+        assert_eq!(serde_json::from_str::<MatchSettings>(&text).unwrap(), s);
+        let j: MatchSettings = serde_json::from_str(r#"{"method": "fmap", "k": 30, "mask": null}"#).unwrap();
+        assert_eq!((j.method, j.k, j.mask), (Some(Method::Fmap), Some(30), None));
+        let err = |t: &str| serde_json::from_str::<MatchSettings>(t).unwrap_err().to_string();
+        assert!(err(r#"{"zoomout-to": 3}"#).contains("zoomout-to: not an option"));
+        assert!(err(r#"{"k": -3}"#).contains("invalid k: expected a non-negative integer, got -3"));
+        assert!(err(r#"{"form": "dense"}"#).contains("expected one of subspace"));
+        assert!(err(r#"{"refine": true}"#).contains("refine: expected a name"));
+        assert!(err("[1, 2]").contains("expected a map"));
+        // A value no name gives is an error, not a wrong file.
+        let odd = MatchSettings { mask: Some(Mask::Resolvent { gamma: 0.25 }), ..Default::default() };
+        assert!(serde_json::to_string(&odd).unwrap_err().to_string().contains("mask"));
     }
 
     /// Nothing given is the library's defaults, method by method and data by data.
