@@ -34,6 +34,7 @@ use crate::prepared::PreparedShape;
 use crate::refine::{self, Scope, ZoomOutOptions};
 use crate::spatial::{farthest_point_samples, Samples};
 
+use super::landmarks::{self, LandmarkData, Landmarks};
 use super::search::{self, SampleDistances, SearchOptions};
 
 /// A ZoomOut schedule on vertex samples.
@@ -88,6 +89,10 @@ pub struct AxiomaticPipeline {
     /// samples corrected ([`super::search`]).
     #[serde(default)]
     pub search: SearchOptions,
+    /// Known corresponding points and how strongly they act ([`super::landmarks`]; none by
+    /// default).
+    #[serde(default)]
+    pub landmarks: Landmarks,
 }
 
 /// The searches of the pipeline on large pairs. Above `above_pairs` vertex pairs n · m (with
@@ -133,6 +138,7 @@ impl Default for AxiomaticPipeline {
             polish: 1,
             near: NearSearch::default(),
             search: SearchOptions::default(),
+            landmarks: Landmarks::default(),
         }
     }
 }
@@ -174,6 +180,19 @@ pub struct Candidate {
     /// For a candidate made of a corrected sample map: the candidate it was corrected from, and
     /// whether by distances and data (true) or by distances alone.
     pub corrected_from: Option<(usize, bool)>,
+    /// With landmarks: the mean geodesic distance on Y (unit area) between the images of the
+    /// landmarks of X under its probe's functional map and their given images
+    /// ([`super::landmarks`]; NaN without landmarks).
+    #[serde(skip_serializing_if = "is_nan")]
+    pub landmark_error: f64,
+    /// Whether the candidate was made from the landmarks alone (their trilateration).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub from_landmarks: bool,
+}
+
+/// Whether a score is missing (NaN): not written to the report.
+fn is_nan(v: &f64) -> bool {
+    v.is_nan()
 }
 
 impl Candidate {
@@ -190,6 +209,8 @@ impl Candidate {
             geodesic_corrected_distortion: f64::NAN,
             geodesic_corrected_orientation: f64::NAN,
             corrected_from: None,
+            landmark_error: f64::NAN,
+            from_landmarks: false,
         }
     }
 }
@@ -305,6 +326,14 @@ pub fn axiomatic_pipeline(
     let t = std::time::Instant::now();
     crate::progress::stage("descriptors")?;
     let (fx, gy) = pipeline_data(x, y, f, g, p)?;
+    // User landmarks: their bumps join the data (module `landmarks`).
+    let lm = LandmarkData::new(x, y, &p.landmarks)?;
+    let (fx, gy) = match &lm {
+        Some(l) => l.functions(x, y, &fx, &gy, &p.landmarks)?,
+        None => (fx, gy),
+    };
+    let pins = lm.as_ref().map_or_else(Vec::new, LandmarkData::pins);
+    let lm_x: Vec<usize> = pins.iter().map(|&(i, _)| i).collect();
     let dx = ShapeData { basis: &x.basis, gradients: x.gradients(), descriptors: &fx };
     let dy = ShapeData { basis: &y.basis, gradients: y.gradients(), descriptors: &gy };
     stages.push(("descriptors".to_string(), t.elapsed().as_secs_f64()));
@@ -316,7 +345,7 @@ pub fn axiomatic_pipeline(
     stages.push(("functional maps".to_string(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
     crate::progress::stage("search samples")?;
-    let probe_samples = samples_of(x, p.probe.samples)?;
+    let probe_samples = landmarks::with_landmarks(samples_of(x, p.probe.samples)?, &lm_x, p.landmarks.pin_weight);
     // Large pairs: every search restricted to samples or near the samples' map (NearSearch).
     let near_positions = match (x.positions(), y.positions()) {
         (Some(px), Some(py))
@@ -378,6 +407,8 @@ pub fn axiomatic_pipeline(
         search: &search,
         scale,
         data: (&fx, &gy),
+        landmarks: lm.as_ref(),
+        pins: &pins,
     };
     // The candidates are probed independently, in parallel.
     let mut probed: Vec<Probe> = fits
@@ -452,6 +483,18 @@ pub fn axiomatic_pipeline(
             probed.push(q);
             starts.push(c0);
         }
+        // With landmarks, one more candidate from the landmarks alone: the samples trilaterated
+        // from their distances to the landmarks, corrected with that as the data term.
+        if let Some(l) = &lm {
+            let costs = l.trilateration_costs(&s.x, &s.y);
+            let start = l.trilaterate(&costs, &s.y);
+            let (fixed, _) = search::correct(&s.x, &s.y, &start, Some(&costs), p.search.rounds)?;
+            let c0 = refine::pullback(phi, psi, &s.x.samples, &fixed, k0, k0)?;
+            let mut q = ctx.probe(&c0, k0, false)?;
+            q.candidate.from_landmarks = true;
+            probed.push(q);
+            starts.push(c0);
+        }
     }
     let candidates: Vec<Candidate> = probed.iter().map(|p| p.candidate.clone()).collect();
     // With the search: the geodesic distortion and the data misfit, each in units of its median
@@ -463,10 +506,16 @@ pub fn axiomatic_pipeline(
         v.get(v.len() / 2).copied().unwrap_or(1.0)
     };
     let (me, md) = (median(&|c| c.distortion), median(&|c| c.data_misfit));
-    let chosen = if search.is_some() {
-        choose(&candidates, p.fit.orientation, |c| c.distortion / me + c.data_misfit / md)
-    } else {
-        choose(&candidates, p.fit.orientation, |c| c.distortion)
+    let chosen = match (search.is_some(), lm.is_some()) {
+        (true, false) => choose(&candidates, p.fit.orientation, |c| c.distortion / me + c.data_misfit / md),
+        (false, false) => choose(&candidates, p.fit.orientation, |c| c.distortion),
+        // With landmarks, their error in units of the tolerance joins the score.
+        (true, true) => choose(&candidates, p.fit.orientation, |c| {
+            c.distortion / me + c.data_misfit / md + c.landmark_error / p.landmarks.tolerance
+        }),
+        (false, true) => {
+            choose(&candidates, p.fit.orientation, |c| c.distortion / me + c.landmark_error / p.landmarks.tolerance)
+        }
     };
     stages.push(("correction".to_string(), t.elapsed().as_secs_f64()));
     let c_fit = starts.swap_remove(chosen);
@@ -475,7 +524,7 @@ pub fn axiomatic_pipeline(
         (true, Some(c)) => c,
         _ => c_fit.clone(),
     };
-    let (c_yx, map_xy, near_samples) = refine_from(x, y, c_start, &c_fit, p, &near_positions, &mut stages)?;
+    let (c_yx, map_xy, near_samples) = refine_from(x, y, c_start, &c_fit, p, &near_positions, &pins, &mut stages)?;
     Ok(AxiomaticResult { map_xy, c_yx, c_fit, candidates, chosen, stages, near_samples, correction })
 }
 
@@ -493,6 +542,9 @@ struct ProbeContext<'a> {
     scale: f64,
     /// The fits' data F (n × q), G (m × q).
     data: (&'a Descriptors, &'a Descriptors),
+    /// The user's landmarks (module `landmarks`), pinned in the probes' ZoomOut.
+    landmarks: Option<&'a LandmarkData>,
+    pins: &'a [(usize, usize)],
 }
 
 impl ProbeContext<'_> {
@@ -508,7 +560,7 @@ impl ProbeContext<'_> {
             (Some(near), Some(sy)) => {
                 let (xs, ys) = (&self.probe_samples.vertices, &sy.vertices);
                 let scope = Scope::Near { near, x_cells: xs, y_cells: ys };
-                let c = refine::zoomout(phi, psi, self.probe_samples, c.as_ref(), &o, scope)?;
+                let c = refine::zoomout_pinned(phi, psi, self.probe_samples, c.as_ref(), &o, scope, self.pins)?;
                 let map = match self.patch {
                     // The images of the patch; other entries stay 0 (unread).
                     Some(patch) => {
@@ -520,7 +572,7 @@ impl ProbeContext<'_> {
                 (c, map)
             }
             _ => {
-                let c = refine::zoomout(phi, psi, self.probe_samples, c.as_ref(), &o, Scope::Exact)?;
+                let c = refine::zoomout_pinned(phi, psi, self.probe_samples, c.as_ref(), &o, Scope::Exact, self.pins)?;
                 let map = match self.patch {
                     Some(patch) => spread(
                         phi.nrows(),
@@ -533,6 +585,10 @@ impl ProbeContext<'_> {
             }
         };
         let mut candidate = Candidate::unscored(k);
+        if let Some(l) = self.landmarks {
+            let images = refine::map_of_pullback(phi, psi, c.as_ref(), Some(&l.xs), Scope::Exact)?;
+            candidate.landmark_error = l.error(&images);
+        }
         candidate.orientation = match (tx, py, ny) {
             (Some(tx), Some(py), Some(ny)) if self.patch.is_some() => {
                 refine::orientation_agreement_around(tx, py, ny, &map, self.centres)?
@@ -648,7 +704,7 @@ fn choose(candidates: &[Candidate], orientation: Orientation, score: impl Fn(&Ca
 /// The final refinement from `c_start` (C_yx): ZoomOut (or its bijective variant) to
 /// `p.refine.k_final`, then the polish. Returns (C_yx, map_xy, the samples of the restricted
 /// final searches) and appends its stage times.
-#[allow(clippy::type_complexity)]
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
 fn refine_from(
     x: &PreparedShape,
     y: &PreparedShape,
@@ -656,19 +712,34 @@ fn refine_from(
     c_fit: &Mat<f64>,
     p: &AxiomaticPipeline,
     near_positions: &Option<refine::Near>,
+    pins: &[(usize, usize)],
     stages: &mut Vec<(String, f64)>,
 ) -> Result<(Mat<f64>, Vec<usize>, Option<(Samples, Samples)>)> {
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
     let t = std::time::Instant::now();
     crate::progress::stage("zoomout")?;
+    // Landmarks (module `landmarks`) are samples of both shapes, pinned in every point map.
+    let (lm_x, lm_y): (Vec<usize>, Vec<usize>) = pins.iter().copied().unzip();
+    let pin = |mut map: Vec<usize>| {
+        for &(i, j) in pins {
+            map[i] = j;
+        }
+        map
+    };
     if p.refine.k_final == 0 {
-        let unrefined = (c_fit.clone(), refine::map_of_pullback(phi, psi, c_fit.as_ref(), None, Scope::Exact)?, None);
+        let map = pin(refine::map_of_pullback(phi, psi, c_fit.as_ref(), None, Scope::Exact)?);
+        let unrefined = (c_fit.clone(), map, None);
         stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
         return Ok(unrefined);
     }
     // Samples computed once for ZoomOut (or its bijective variant) and the polish.
-    let sx = samples_of(x, p.refine.samples)?;
-    let sy = if p.bijective > 0.0 || p.polish > 0 { Some(samples_of(y, p.refine.samples)?) } else { None };
+    let pw = p.landmarks.pin_weight;
+    let sx = landmarks::with_landmarks(samples_of(x, p.refine.samples)?, &lm_x, pw);
+    let sy = if p.bijective > 0.0 || p.polish > 0 {
+        Some(landmarks::with_landmarks(samples_of(y, p.refine.samples)?, &lm_y, pw))
+    } else {
+        None
+    };
     let (c, map) = match &sy {
         Some(sy) if p.bijective > 0.0 => {
             let o = refine::BijectiveOptions {
@@ -678,7 +749,7 @@ fn refine_from(
             };
             let c_xy0 = c_start.transpose().to_owned();
             let (c, m, _) = refine::bijective_zoomout(phi, psi, &sx, sy, c_start.as_ref(), c_xy0.as_ref(), &o)?;
-            (c, Some(m))
+            (c, Some(pin(m)))
         }
         _ => {
             let o = ZoomOutOptions { k_final: p.refine.k_final.max(c_start.nrows()), step: p.refine.step };
@@ -688,11 +759,11 @@ fn refine_from(
                     (Some(near), Some(sy)) => Scope::Near { near, x_cells: &sx.vertices, y_cells: &sy.vertices },
                     _ => Scope::Exact,
                 };
-                let c = refine::zoomout(phi, psi, &sx, c_start.as_ref(), &o, scope)?;
+                let c = refine::zoomout_pinned(phi, psi, &sx, c_start.as_ref(), &o, scope, pins)?;
                 (c, None)
             } else {
-                let c = refine::zoomout(phi, psi, &sx, c_start.as_ref(), &o, Scope::Exact)?;
-                let m = refine::map_of_pullback(phi, psi, c.as_ref(), None, Scope::Exact)?;
+                let c = refine::zoomout_pinned(phi, psi, &sx, c_start.as_ref(), &o, Scope::Exact, pins)?;
+                let m = pin(refine::map_of_pullback(phi, psi, c.as_ref(), None, Scope::Exact)?);
                 (c, Some(m))
             }
         }
@@ -705,14 +776,14 @@ fn refine_from(
             crate::progress::stage("polish")?;
             let sy = match sy {
                 Some(sy) => sy,
-                None => samples_of(y, p.refine.samples)?,
+                None => landmarks::with_landmarks(samples_of(y, p.refine.samples)?, &lm_y, pw),
             };
             let near = near_positions.as_ref().filter(|_| p.refine.samples > 0);
             let scope = match near {
                 Some(near) => Scope::Near { near, x_cells: &sx.vertices, y_cells: &sy.vertices },
                 None => Scope::Exact,
             };
-            let (c, map) = refine::bijective_polish(phi, psi, &sx, &sy, c.as_ref(), p.polish, scope)?;
+            let (c, map) = refine::bijective_polish_pinned(phi, psi, &sx, &sy, c.as_ref(), p.polish, scope, pins)?;
             stages.push(("polish".to_string(), t.elapsed().as_secs_f64()));
             Ok((c, map, near.map(|_| (sx, sy))))
         }

@@ -3,6 +3,7 @@
 //! programs are thin layers over [`run`].
 
 pub mod axiomatic;
+pub mod landmarks;
 pub mod search;
 
 use std::time::Instant;
@@ -276,6 +277,8 @@ pub struct MatchReport<'a> {
     pub candidates: Option<CandidateChoice<'a>>,
     /// The axiomatic method's basin search: what its correction did.
     pub correction: Option<&'a search::Correction>,
+    /// Number of user landmarks the run used ([`landmarks`]; 0: none).
+    pub landmarks: usize,
     /// The stages in order.
     pub stages: Vec<StageTime<'a>>,
 }
@@ -327,6 +330,7 @@ impl MatchResult {
             solver: self.solver.as_ref(),
             candidates: self.candidates.as_ref().map(|(c, i)| CandidateChoice { candidates: c, chosen: *i }),
             correction: self.correction.as_ref(),
+            landmarks: if opts.method == Method::Axiomatic { opts.axiomatic.landmarks.pairs.len() } else { 0 },
             stages: self.stages.iter().map(|(s, t)| StageTime { stage: s, seconds: *t }).collect(),
         }
     }
@@ -516,6 +520,13 @@ pub fn run_prepared(
     opts: &MatchOptions,
 ) -> Result<MatchResult> {
     if opts.method != Method::Axiomatic {
+        if !opts.axiomatic.landmarks.is_empty() {
+            return Err(Error::invalid(
+                "landmarks",
+                "landmarks act in the default (axiomatic) method only; for the other methods give them as data \
+                 (landmarks:pairs.txt)",
+            ));
+        }
         let orient = opts.method == Method::Completion
             && opts.completion.params.mu_prior > 0.0
             && opts.axiomatic.fit.weights.orientation > 0.0
@@ -533,7 +544,7 @@ pub fn run_prepared(
     let mut stages = r.stages;
     let c = r.c_yx.transpose().to_owned();
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
-    let map_yx = timed(&mut stages, "map Y → X", || match (&r.near_samples, x.positions(), y.positions()) {
+    let mut map_yx = timed(&mut stages, "map Y → X", || match (&r.near_samples, x.positions(), y.positions()) {
         (Some((sx, sy)), Some(px), Some(py)) => {
             let near = crate::refine::Near { x: py, y: px, cells: opts.axiomatic.near.cells };
             let scope = crate::refine::Scope::Near { near: &near, x_cells: &sy.vertices, y_cells: &sx.vertices };
@@ -541,6 +552,10 @@ pub fn run_prepared(
         }
         _ => crate::refine::map_of_pullback(psi, phi, c.as_ref(), None, crate::refine::Scope::Exact),
     })?;
+    // The landmarks' images are pinned in the map back too (module `landmarks`).
+    for &(i, j) in &opts.axiomatic.landmarks.pairs {
+        map_yx[j] = i;
+    }
     let r = MatchResult {
         map_xy: r.map_xy,
         map_yx,
