@@ -551,12 +551,14 @@ fn main() -> Result<()> {
                     let chosen = r.candidates.as_ref().map_or(0, |(c, i)| c[*i].k);
                     let search = match (&r.correction, &r.candidates) {
                         (Some(c), Some((cands, i))) => format!(
-                            "{{\"moved\":{},\"rounds\":{},\"start\":{:.4},\"end\":{:.4},\"corrected\":{}}}",
+                            "{{\"moved\":{},\"rounds\":{},\"start\":{:.4},\"end\":{:.4},\"corrected\":{},\"from_landmarks\":{},\"landmark_error\":{:.4}}}",
                             c.moved,
                             c.trace.len() - 1,
                             c.trace[0],
                             c.trace.iter().copied().fold(f64::INFINITY, f64::min),
-                            cands[*i].corrected_from.is_some()
+                            cands[*i].corrected_from.is_some(),
+                            cands[*i].from_landmarks,
+                            cands[*i].landmark_error
                         ),
                         _ => "null".to_string(),
                     };

@@ -29,6 +29,13 @@ pub(crate) struct MatchArgs {
     /// Functional-map method.
     #[arg(long, value_enum, default_value = "axiomatic")]
     pub(crate) method: MethodChoice,
+    /// Known corresponding points: a file of 0-based vertex pairs `i j` (vertex i of X, vertex j
+    /// of Y), one per line (`#` comments). They join the default pipeline as strongly weighted
+    /// landmark functions, in the choice among its candidates and pinned in every refinement step
+    /// (`funcorr::matching::landmarks`): for pairs no intrinsic method can decide (non-isometric or
+    /// strongly symmetric shapes), 3 to 10 points such as the head, hands and feet.
+    #[arg(long, value_name = "FILE")]
+    pub(crate) landmarks: Option<PathBuf>,
     #[command(flatten)]
     pub(crate) pipe: PipelineArgs,
     /// Write map.txt with 1-based vertex ids (MATLAB).
@@ -81,7 +88,14 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     let mut st = Stages { quiet: args.quiet, parts: vec![] };
     // A malformed --data fails before any work.
     args.data.parse::<funcorr::descriptors::spec::PairDataSpec>()?.standalone()?;
-    let opts = match_options(args)?;
+    let mut opts = match_options(args)?;
+    if args.landmarks.is_some() && opts.method != funcorr::matching::Method::Axiomatic {
+        return Err(Error::invalid(
+            "--landmarks",
+            "landmarks act in the default method (--method axiomatic); for the other methods give them as data, \
+             --data landmarks:FILE",
+        ));
+    }
     let view = funcorr::viz::View::parse(&args.view)?;
     let size = parse_size(&args.size)?;
     let (basis_k, demand) = basis_demand(&args.pipe, &opts)?;
@@ -94,6 +108,10 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
         if basis_k >= shape.n_vertices() {
             return Err(too_small(path, shape.n_vertices(), &args.pipe, &opts, basis_k, &demand));
         }
+    }
+    if let Some(path) = &args.landmarks {
+        opts.axiomatic.landmarks.pairs =
+            funcorr::io::indices::read_index_pairs_file(path, false, x.n_vertices(), y.n_vertices())?;
     }
     if let Some(&bad) = args.soft.iter().find(|&&i| i >= x.n_vertices()) {
         return Err(Error::invalid("--soft", format!("vertex {bad} of X does not exist (n = {})", x.n_vertices())));

@@ -509,12 +509,13 @@ pub fn axiomatic_pipeline(
     let chosen = match (search.is_some(), lm.is_some()) {
         (true, false) => choose(&candidates, p.fit.orientation, |c| c.distortion / me + c.data_misfit / md),
         (false, false) => choose(&candidates, p.fit.orientation, |c| c.distortion),
-        // With landmarks, their error in units of the tolerance joins the score.
-        (true, true) => choose(&candidates, p.fit.orientation, |c| {
+        // With landmarks, their error in units of the tolerance joins the score, and they, not the
+        // orientation of the probes, tell a map from its mirror image.
+        (true, true) => choose(&candidates, Orientation::Ignore, |c| {
             c.distortion / me + c.data_misfit / md + c.landmark_error / p.landmarks.tolerance
         }),
         (false, true) => {
-            choose(&candidates, p.fit.orientation, |c| c.distortion / me + c.landmark_error / p.landmarks.tolerance)
+            choose(&candidates, Orientation::Ignore, |c| c.distortion / me + c.landmark_error / p.landmarks.tolerance)
         }
     };
     stages.push(("correction".to_string(), t.elapsed().as_secs_f64()));

@@ -56,7 +56,7 @@ pub struct Landmarks {
 
 impl Default for Landmarks {
     fn default() -> Self {
-        Landmarks { pairs: Vec::new(), weight: 1.0, widths: vec![0.1, 0.2, 0.4], pin_weight: 10.0, tolerance: 0.05 }
+        Landmarks { pairs: Vec::new(), weight: 1.0, widths: vec![0.1, 0.2, 0.4], pin_weight: 1.0, tolerance: 0.05 }
     }
 }
 
@@ -238,4 +238,90 @@ pub(crate) fn with_landmarks(mut samples: Samples, vertices: &[usize], pin_weigh
         }
     }
     samples
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::descriptors::signatures::{wks_recipe, WksRecipe};
+    use crate::fmap::axiomatic::AxiomaticOptions;
+    use crate::fmap::energy::Orientation;
+    use crate::matching::axiomatic::{axiomatic_pipeline, AxiomaticPipeline};
+    use crate::prepared::LaplacianChoice;
+    use crate::primitives::mirror_symmetric_blob;
+    use crate::shape::Shape;
+
+    /// X (a mirror-symmetric blob), a vertex-permuted copy Y, the true map X → Y and its mirror
+    /// image.
+    fn pair() -> (PreparedShape, PreparedShape, Vec<usize>, Vec<usize>) {
+        let (x, mirror) = mirror_symmetric_blob(3);
+        let n = x.n_vertices();
+        let perm: Vec<usize> = (0..n).map(|i| (i * 211 + 17) % n).collect();
+        let mut inv = vec![0; n];
+        for (i, &p) in perm.iter().enumerate() {
+            inv[p] = i;
+        }
+        let y = x.permuted(&inv).unwrap();
+        let mirrored: Vec<usize> = (0..n).map(|i| perm[mirror[i]]).collect();
+        let prep =
+            |m: crate::shape::TriMesh| PreparedShape::new(Shape::Mesh(m), LaplacianChoice::Auto, 120, None).unwrap();
+        (prep(x), prep(y), perm, mirrored)
+    }
+
+    fn agreement(a: &[usize], b: &[usize]) -> f64 {
+        a.iter().zip(b).filter(|(p, q)| p == q).count() as f64 / a.len() as f64
+    }
+
+    /// The pipeline asked for the wrong orientation finds the mirror image of the true map (the
+    /// data cannot tell them apart); five landmarks with their true images give the true map
+    /// back, and hold at their images.
+    #[test]
+    fn landmarks_turn_a_flipped_map_into_the_true_one() {
+        let (x, y, truth, mirrored) = pair();
+        let r = WksRecipe::default();
+        let (f, g) = (wks_recipe(&x.basis, &r).unwrap(), wks_recipe(&y.basis, &r).unwrap());
+        let base = AxiomaticPipeline::default();
+        let p = AxiomaticPipeline { fit: AxiomaticOptions { orientation: Orientation::Reverse, ..base.fit }, ..base };
+        let flipped = axiomatic_pipeline(&x, &y, &f, &g, &p).unwrap();
+        let (good, bad) = (agreement(&flipped.map_xy, &truth), agreement(&flipped.map_xy, &mirrored));
+        assert!(bad > 0.95 && good < 0.1, "without landmarks: {bad} of the mirror image, {good} of the true map");
+        let all: Vec<usize> = (0..x.n()).collect();
+        let picks = crate::spatial::farthest_points(x.triangles().unwrap(), &all, 5);
+        let pairs: Vec<(usize, usize)> = picks.iter().map(|&i| (i, truth[i])).collect();
+        let with = AxiomaticPipeline { landmarks: Landmarks { pairs: pairs.clone(), ..Landmarks::default() }, ..p };
+        let res = axiomatic_pipeline(&x, &y, &f, &g, &with).unwrap();
+        let (good, bad) = (agreement(&res.map_xy, &truth), agreement(&res.map_xy, &mirrored));
+        assert!(good > 0.9 && bad < 0.1, "with 5 landmarks: {good} of the true map, {bad} of its mirror image");
+        assert!(pairs.iter().all(|&(i, j)| res.map_xy[i] == j));
+        let chosen = &res.candidates[res.chosen];
+        assert!(chosen.landmark_error < 0.05, "landmark error of the chosen candidate {}", chosen.landmark_error);
+        assert!(res.candidates.iter().any(|c| c.from_landmarks));
+    }
+
+    #[test]
+    fn bad_landmarks_are_errors() {
+        let ok = Landmarks { pairs: vec![(0, 1), (2, 3)], ..Landmarks::default() };
+        assert!(ok.check(4, 4).is_ok());
+        let e = Landmarks { pairs: vec![(0, 1), (2, 4)], ..ok.clone() }.check(4, 4).unwrap_err().to_string();
+        assert!(e.contains("landmarks") && e.contains("pair 2 (2, 4) is out of range"), "{e}");
+        let e = Landmarks { pairs: vec![(0, 1), (0, 3)], ..ok.clone() }.check(4, 4).unwrap_err().to_string();
+        assert!(e.contains("vertex 0 of X is given twice"), "{e}");
+        let e = Landmarks { weight: f64::NAN, ..ok.clone() }.check(4, 4).unwrap_err().to_string();
+        assert!(e.contains("landmark weight"), "{e}");
+        let e = Landmarks { widths: vec![0.1, 0.0], ..ok.clone() }.check(4, 4).unwrap_err().to_string();
+        assert!(e.contains("landmark widths"), "{e}");
+        let e = Landmarks { tolerance: 0.0, ..ok }.check(4, 4).unwrap_err().to_string();
+        assert!(e.contains("landmark tolerance"), "{e}");
+    }
+
+    /// The samples of ZoomOut and the polish get the landmarks, at least `pin_weight` times the
+    /// mean sample weight; without landmarks they are unchanged.
+    #[test]
+    fn landmarks_join_the_samples() {
+        let s = Samples { vertices: vec![3, 5, 9], weights: vec![1.0, 2.0, 3.0] };
+        assert_eq!(with_landmarks(s.clone(), &[], 10.0), s);
+        let t = with_landmarks(s, &[5, 7], 1.5);
+        assert_eq!(t.vertices, vec![3, 5, 9, 7]);
+        assert_eq!(t.weights, vec![1.0, 3.0, 3.0, 3.0]);
+    }
 }
