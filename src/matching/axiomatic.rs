@@ -509,13 +509,15 @@ pub fn axiomatic_pipeline(
     let chosen = match (search.is_some(), lm.is_some()) {
         (true, false) => choose(&candidates, p.fit.orientation, |c| c.distortion / me + c.data_misfit / md),
         (false, false) => choose(&candidates, p.fit.orientation, |c| c.distortion),
-        // With landmarks, their error in units of the tolerance joins the score, and they, not the
-        // orientation of the probes, tell a map from its mirror image.
-        (true, true) => choose(&candidates, Orientation::Ignore, |c| {
-            c.distortion / me + c.data_misfit / md + c.landmark_error / p.landmarks.tolerance
-        }),
-        (false, true) => {
-            choose(&candidates, Orientation::Ignore, |c| c.distortion / me + c.landmark_error / p.landmarks.tolerance)
+        // With landmarks, their error in units of the tolerance joins the score; and when no
+        // candidate of the asked orientation respects them (error ≤ 2 tolerances), they, not
+        // that orientation, tell a map from its mirror image.
+        (_, true) => {
+            let tol = p.landmarks.tolerance;
+            let respected = candidates.iter().any(|c| agrees(c, p.fit.orientation) && c.landmark_error <= 2.0 * tol);
+            let orientation = if respected { p.fit.orientation } else { Orientation::Ignore };
+            let misfit = |c: &Candidate| if search.is_some() { c.data_misfit / md } else { 0.0 };
+            choose(&candidates, orientation, |c| c.distortion / me + misfit(c) + c.landmark_error / tol)
         }
     };
     stages.push(("correction".to_string(), t.elapsed().as_secs_f64()));
@@ -678,15 +680,21 @@ fn spread(n: usize, rows: &[usize], images: &[usize]) -> Vec<usize> {
     map
 }
 
+/// Whether a candidate's orientation agrees with the asked one (≥ 0 for preserving maps, ≤ 0 for
+/// reversing ones; NaN and `Ignore` always).
+fn agrees(c: &Candidate, orientation: Orientation) -> bool {
+    match orientation {
+        Orientation::Preserve => c.orientation >= 0.0 || c.orientation.is_nan(),
+        Orientation::Reverse => c.orientation <= 0.0 || c.orientation.is_nan(),
+        Orientation::Ignore => true,
+    }
+}
+
 /// The candidate with the smallest `score` among those whose orientation agrees with the asked
 /// one (orientation ≥ 0 for preserving maps, ≤ 0 for reversing ones; all when none does or
 /// orientation is ignored); the first candidate when no score could be measured (NaN).
 fn choose(candidates: &[Candidate], orientation: Orientation, score: impl Fn(&Candidate) -> f64) -> usize {
-    let agrees = |c: &Candidate| match orientation {
-        Orientation::Preserve => c.orientation >= 0.0 || c.orientation.is_nan(),
-        Orientation::Reverse => c.orientation <= 0.0 || c.orientation.is_nan(),
-        Orientation::Ignore => true,
-    };
+    let agrees = |c: &Candidate| agrees(c, orientation);
     let any = candidates.iter().any(agrees);
     (0..candidates.len())
         .filter(|&a| !any || agrees(&candidates[a]))
