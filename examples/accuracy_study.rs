@@ -20,6 +20,18 @@
 //! `bs=N` samples of the basin search (0: none, candidates by edge distortion), `br=N` its
 //! correction rounds, `banch=N` its anchors on Y.
 //!
+//! Landmarks (issue 28, `funcorr match --landmarks`): `lm=N` gives the pipeline N ground-truth
+//! pairs, the farthest-point samples (Euclidean, on X) of the template points starting from the
+//! template point at position `lmseed · 7919 mod len` (`lmseed=S`, default 0: the first), with
+//! their ground-truth images; `lmw=W` their weight in the data, `lmpin=W` their sample weight in
+//! ZoomOut and the polish, `lmtol=T` their tolerance in the candidates' score
+//! (`funcorr::matching::landmarks::Landmarks`). The JSON line then has `"landmarks"` and
+//! `"lmseed"`; `"search"` has the chosen candidate's `"landmark_error"` and whether it was made
+//! from the landmarks.
+//! ```sh
+//! $E ../shared/data/tosca_nonisometric_r 0:2 "lm0:;lm3:lm=3;lm5:lm=5;lm10:lm=10;lm5s1:lm=5,lmseed=1"
+//! ```
+//!
 //! Point clouds: `CLOUD=y` (Y given as its vertices), `CLOUD=both`; `RESAMPLE=N` draws N points
 //! uniformly on the surface instead (vertices not shared). Errors are then measured on Y's mesh
 //! through the nearest vertex of each cloud point, and the template points of X are moved to the

@@ -53,8 +53,8 @@ def test_landmarks_unflip_the_map_and_equal_the_cli(cli, tmp_path, ground_truth)
 def test_bad_landmarks_are_value_errors(tmp_path):
     with pytest.raises(ValueError, match=r"landmarks.*\(k, 2\)"):
         funcorr.match(X_PATH, Y_PATH, landmarks=np.zeros((3, 3), dtype=np.int64))
-    with pytest.raises(ValueError, match=r"landmarks.*row 1 is \(5, 4999\), out of range"):
-        funcorr.match(X_PATH, Y_PATH, landmarks=np.array([[1, 2], [5, 4999]]))
+    with pytest.raises(ValueError, match=r"landmarks.*row 1 is \(5, 5000\), out of range"):
+        funcorr.match(X_PATH, Y_PATH, landmarks=np.array([[1, 2], [5, 5000]]))
     with pytest.raises(ValueError, match="integer"):
         funcorr.match(X_PATH, Y_PATH, landmarks=np.array([[1.5, 2.0]]))
     bad = tmp_path / "bad.txt"
