@@ -510,11 +510,12 @@ pub fn axiomatic_pipeline(
         (true, false) => choose(&candidates, p.fit.orientation, |c| c.distortion / me + c.data_misfit / md),
         (false, false) => choose(&candidates, p.fit.orientation, |c| c.distortion),
         // With landmarks, their error in units of the tolerance joins the score; and when no
-        // candidate of the asked orientation respects them (error ≤ 2 tolerances), they, not
-        // that orientation, tell a map from its mirror image.
+        // candidate of the asked orientation respects them (an error within one tolerance of the
+        // lowest), they, not that orientation, tell a map from its mirror image.
         (_, true) => {
             let tol = p.landmarks.tolerance;
-            let respected = candidates.iter().any(|c| agrees(c, p.fit.orientation) && c.landmark_error <= 2.0 * tol);
+            let best = candidates.iter().map(|c| c.landmark_error).fold(f64::INFINITY, f64::min);
+            let respected = candidates.iter().any(|c| agrees(c, p.fit.orientation) && c.landmark_error <= best + tol);
             let orientation = if respected { p.fit.orientation } else { Orientation::Ignore };
             let misfit = |c: &Candidate| if search.is_some() { c.data_misfit / md } else { 0.0 };
             choose(&candidates, orientation, |c| c.distortion / me + misfit(c) + c.landmark_error / tol)

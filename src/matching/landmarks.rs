@@ -43,7 +43,7 @@ pub struct Landmarks {
     /// Known pairs (vertex of X, vertex of Y), 0-based (empty: no landmarks).
     pub pairs: Vec<(usize, usize)>,
     /// Total squared norm of the landmark functions relative to that of the other data columns
-    /// (each column of unit norm before this scaling).
+    /// (each column of unit norm before this scaling; 0: no landmark functions in the data).
     pub weight: f64,
     /// Widths σ of the geodesic bumps around every landmark, on the shapes scaled to unit area.
     pub widths: Vec<f64>,
@@ -162,6 +162,9 @@ impl LandmarkData {
         gy: &Descriptors,
         opts: &Landmarks,
     ) -> Result<(Descriptors, Descriptors)> {
+        if opts.weight == 0.0 {
+            return Ok((fx.clone(), gy.clone()));
+        }
         let (l, w) = (self.len(), opts.widths.len());
         let q_lm = l * w;
         let scale = if fx.q() == 0 { 1.0 } else { (opts.weight * fx.q() as f64 / q_lm as f64).sqrt() };
