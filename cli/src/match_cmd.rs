@@ -30,6 +30,13 @@ pub(crate) struct MatchArgs {
     /// Functional-map method.
     #[arg(long, value_enum, default_value = "axiomatic")]
     pub(crate) method: MethodChoice,
+    /// Known corresponding points: a file of 0-based vertex pairs `i j` (vertex i of X, vertex j
+    /// of Y), one per line (`#` comments). They join the default pipeline as strongly weighted
+    /// landmark functions, in the choice among its candidates and pinned in every refinement step
+    /// (`funcorr::matching::landmarks`): for pairs no intrinsic method can decide (non-isometric or
+    /// strongly symmetric shapes), 3 to 10 points such as the head, hands and feet.
+    #[arg(long, value_name = "FILE")]
+    pub(crate) landmarks: Option<PathBuf>,
     #[command(flatten)]
     pub(crate) pipe: PipelineArgs,
     /// Write map.txt with 1-based vertex ids (MATLAB).
@@ -88,7 +95,14 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     let mut st = Stages { quiet: args.quiet, parts: vec![] };
     // A malformed --data fails before any work.
     let spec = args.data.parse::<PairDataSpec>()?.standalone()?;
-    let (settings, opts) = match_options(args, &spec)?;
+    let (settings, mut opts) = match_options(args, &spec)?;
+    if args.landmarks.is_some() && opts.method != funcorr::matching::Method::Axiomatic {
+        return Err(Error::invalid(
+            "--landmarks",
+            "landmarks act in the default method (--method axiomatic); for the other methods give them as data, \
+             --data landmarks:FILE",
+        ));
+    }
     let view = funcorr::viz::View::parse(&args.view)?;
     let size = parse_size(&args.size)?;
     let demand = settings.basis_demand(&opts, &Flags)?;
@@ -103,6 +117,10 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
             let name = funcorr::error::escape_path(path);
             return Err(settings.too_small(&name, shape.n_vertices(), &opts, &demand, &Flags));
         }
+    }
+    if let Some(path) = &args.landmarks {
+        opts.axiomatic.landmarks.pairs =
+            funcorr::io::indices::read_index_pairs_file(path, false, x.n_vertices(), y.n_vertices())?;
     }
     if let Some(&bad) = args.soft.iter().find(|&&i| i >= x.n_vertices()) {
         return Err(Error::invalid("--soft", format!("vertex {bad} of X does not exist (n = {})", x.n_vertices())));
@@ -293,6 +311,7 @@ mod tests {
             "data",
             "one_based",
             "soft",
+            "landmarks",
             "view",
             "size",
             "no_render",

@@ -467,6 +467,12 @@ def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str
     :func:`prepare`; ``seg_function``, ``threshold``, ``hks_time``; ``cache_dir``. An unknown
     keyword raises TypeError; a bad value ValueError naming it.
 
+    ``landmarks``: known corresponding points for the default method, a (k, 2) integer array of
+    0-based pairs ``(vertex of X, vertex of Y)`` or the path of a file of such pairs (``i j`` per
+    line, as ``funcorr match --landmarks``). They join the fits' data, the choice among the
+    candidates and every refinement step (``map_xy[i] == j`` for every pair): for pairs no
+    intrinsic method can decide (non-isometric or strongly symmetric shapes).
+
     ``progress``: None (default: a bar on stderr in a terminal, a notebook-friendly one in
     Jupyter, nothing when stderr is a file or a pipe; ``$FUNCORR_PROGRESS=0`` turns it off),
     True, False, or a callable ``(stage, done, total)`` (module ``funcorr._progress``). Ctrl-C

@@ -91,6 +91,7 @@ fn match_shapes<'py>(
     let choice = laplacian_choice(&mut o)?;
     let seg = options::segmentation(&mut o)?;
     let cache = cache_arg(o.take("cache_dir").as_ref())?;
+    let landmarks = o.take("landmarks").filter(|v| !v.is_none());
     o.finish()?;
     let (sx, sy) = (side(x, "X")?, side(y, "Y")?);
     if let (Some(key), true) = (given.first(), matches!(sx, Side::Ready(_)) && matches!(sy, Side::Ready(_))) {
@@ -110,11 +111,27 @@ fn match_shapes<'py>(
             check_surface(s, choice, name)?;
         }
     }
-    if let Data::Given(f, g) = &data {
-        let n_of = |s: &Side| match s {
-            Side::Ready(p) => p.n(),
-            Side::Raw(s) => s.n_vertices(),
+    let n_of = |s: &Side| match s {
+        Side::Ready(p) => p.n(),
+        Side::Raw(s) => s.n_vertices(),
+    };
+    // `landmarks=`: a file of pairs (as `funcorr match --landmarks`) or a (k, 2) integer array.
+    let mut opts = opts;
+    if let Some(l) = &landmarks {
+        if opts.method != funcorr::matching::Method::Axiomatic {
+            return Err(value_error(
+                "landmarks",
+                "landmarks act in the default method (method='axiomatic'); for the others give them as data, \
+                 data='landmarks:FILE'",
+            ));
+        }
+        let (n, m) = (n_of(&sx), n_of(&sy));
+        opts.axiomatic.landmarks.pairs = match arrays::path_arg(l) {
+            Some(path) => funcorr::io::indices::read_index_pairs_file(&path, false, n, m).map_err(crate::to_py)?,
+            None => arrays::index_pairs(l, "landmarks", n, m)?,
         };
+    }
+    if let Data::Given(f, g) = &data {
         if f.n() != n_of(&sx) || g.n() != n_of(&sy) {
             return Err(value_error(
                 "data",

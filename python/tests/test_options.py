@@ -15,6 +15,8 @@ from funcorr import _funcorr
 # (the Laplacian options of funcorr.prepare, named as there), the segmentation of the data, the cache.
 PREPARATION = {"laplacian", "cloud_neighbours", "knn", "vertex_weights", "sigma", "cache_dir"}
 SEGMENTATION = {"seg_function", "threshold", "hks_time"}
+# Inputs beside the shapes and the data: known corresponding points (`funcorr match --landmarks`).
+INPUTS = {"landmarks"}
 
 
 def documented():
@@ -35,7 +37,7 @@ def test_the_keywords_are_the_library_options():
         "progress",
     ]
     assert "method" in keys
-    assert documented() == (keys - {"method"}) | SEGMENTATION | {"cache_dir"}
+    assert documented() == (keys - {"method"}) | SEGMENTATION | INPUTS | {"cache_dir"}
 
 
 def test_every_key_is_a_keyword_and_nothing_else():

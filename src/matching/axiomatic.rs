@@ -36,6 +36,7 @@ use crate::prepared::PreparedShape;
 use crate::refine::{self, Scope, ZoomOutOptions};
 use crate::spatial::{farthest_point_samples, Samples};
 
+use super::landmarks::{self, LandmarkData, Landmarks};
 use super::search::{self, SampleDistances, SearchOptions};
 
 /// A ZoomOut schedule on vertex samples.
@@ -90,6 +91,10 @@ pub struct AxiomaticPipeline {
     /// samples corrected ([`super::search`]).
     #[serde(default)]
     pub search: SearchOptions,
+    /// Known corresponding points and how strongly they act ([`super::landmarks`]; none by
+    /// default).
+    #[serde(default)]
+    pub landmarks: Landmarks,
 }
 
 /// The searches of the pipeline on large pairs. Above `above_pairs` vertex pairs n · m (with
@@ -135,6 +140,7 @@ impl Default for AxiomaticPipeline {
             polish: 1,
             near: NearSearch::default(),
             search: SearchOptions::default(),
+            landmarks: Landmarks::default(),
         }
     }
 }
@@ -176,6 +182,19 @@ pub struct Candidate {
     /// For a candidate made of a corrected sample map: the candidate it was corrected from, and
     /// whether by distances and data (true) or by distances alone.
     pub corrected_from: Option<(usize, bool)>,
+    /// With landmarks: the mean geodesic distance on Y (unit area) between the images of the
+    /// landmarks of X under its probe's functional map and their given images
+    /// ([`super::landmarks`]; NaN without landmarks).
+    #[serde(skip_serializing_if = "is_nan")]
+    pub landmark_error: f64,
+    /// Whether the candidate was made from the landmarks alone (their trilateration).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub from_landmarks: bool,
+}
+
+/// Whether a score is missing (NaN): not written to the report.
+fn is_nan(v: &f64) -> bool {
+    v.is_nan()
 }
 
 impl Candidate {
@@ -192,6 +211,8 @@ impl Candidate {
             geodesic_corrected_distortion: f64::NAN,
             geodesic_corrected_orientation: f64::NAN,
             corrected_from: None,
+            landmark_error: f64::NAN,
+            from_landmarks: false,
         }
     }
 }
@@ -307,6 +328,14 @@ pub fn axiomatic_pipeline(
     let t = std::time::Instant::now();
     crate::progress::stage("descriptors")?;
     let (fx, gy) = pipeline_data(x, y, f, g, p)?;
+    // User landmarks: their bumps join the data (module `landmarks`).
+    let lm = LandmarkData::new(x, y, &p.landmarks)?;
+    let (fx, gy) = match &lm {
+        Some(l) => l.functions(x, y, &fx, &gy, &p.landmarks)?,
+        None => (fx, gy),
+    };
+    let pins = lm.as_ref().map_or_else(Vec::new, LandmarkData::pins);
+    let lm_x: Vec<usize> = pins.iter().map(|&(i, _)| i).collect();
     let dx = ShapeData { basis: &x.basis, gradients: x.gradients(), descriptors: &fx };
     let dy = ShapeData { basis: &y.basis, gradients: y.gradients(), descriptors: &gy };
     stages.push(("descriptors".to_string(), t.elapsed().as_secs_f64()));
@@ -318,7 +347,7 @@ pub fn axiomatic_pipeline(
     stages.push(("functional maps".to_string(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
     crate::progress::stage("search samples")?;
-    let probe_samples = samples_of(x, p.probe.samples)?;
+    let probe_samples = landmarks::with_landmarks(samples_of(x, p.probe.samples)?, &lm_x, p.landmarks.pin_weight);
     // Large pairs: every search restricted to samples or near the samples' map (NearSearch).
     let near_positions = match (x.positions(), y.positions()) {
         (Some(px), Some(py))
@@ -380,6 +409,8 @@ pub fn axiomatic_pipeline(
         search: &search,
         scale,
         data: (&fx, &gy),
+        landmarks: lm.as_ref(),
+        pins: &pins,
     };
     // The candidates are probed independently, in parallel.
     let mut probed: Vec<Probe> = fits
@@ -454,6 +485,18 @@ pub fn axiomatic_pipeline(
             probed.push(q);
             starts.push(c0);
         }
+        // With landmarks, one more candidate from the landmarks alone: the samples trilaterated
+        // from their distances to the landmarks, corrected with that as the data term.
+        if let Some(l) = &lm {
+            let costs = l.trilateration_costs(&s.x, &s.y);
+            let start = l.trilaterate(&costs, &s.y);
+            let (fixed, _) = search::correct(&s.x, &s.y, &start, Some(&costs), p.search.rounds)?;
+            let c0 = Pullback(refine::pullback(phi, psi, &s.x.samples, &fixed, k0, k0)?);
+            let mut q = ctx.probe(&c0, k0, false)?;
+            q.candidate.from_landmarks = true;
+            probed.push(q);
+            starts.push(c0);
+        }
     }
     let candidates: Vec<Candidate> = probed.iter().map(|p| p.candidate.clone()).collect();
     // With the search: the geodesic distortion and the data misfit, each in units of its median
@@ -465,10 +508,20 @@ pub fn axiomatic_pipeline(
         v.get(v.len() / 2).copied().unwrap_or(1.0)
     };
     let (me, md) = (median(&|c| c.distortion), median(&|c| c.data_misfit));
-    let chosen = if search.is_some() {
-        choose(&candidates, p.fit.orientation, |c| c.distortion / me + c.data_misfit / md)
-    } else {
-        choose(&candidates, p.fit.orientation, |c| c.distortion)
+    let chosen = match (search.is_some(), lm.is_some()) {
+        (true, false) => choose(&candidates, p.fit.orientation, |c| c.distortion / me + c.data_misfit / md),
+        (false, false) => choose(&candidates, p.fit.orientation, |c| c.distortion),
+        // With landmarks, their error in units of the tolerance joins the score; and when no
+        // candidate of the asked orientation respects them (an error within one tolerance of the
+        // lowest), they, not that orientation, tell a map from its mirror image.
+        (_, true) => {
+            let tol = p.landmarks.tolerance;
+            let best = candidates.iter().map(|c| c.landmark_error).fold(f64::INFINITY, f64::min);
+            let respected = candidates.iter().any(|c| agrees(c, p.fit.orientation) && c.landmark_error <= best + tol);
+            let orientation = if respected { p.fit.orientation } else { Orientation::Ignore };
+            let misfit = |c: &Candidate| if search.is_some() { c.data_misfit / md } else { 0.0 };
+            choose(&candidates, orientation, |c| c.distortion / me + misfit(c) + c.landmark_error / tol)
+        }
     };
     stages.push(("correction".to_string(), t.elapsed().as_secs_f64()));
     let c_fit = starts.swap_remove(chosen);
@@ -477,7 +530,7 @@ pub fn axiomatic_pipeline(
         (true, Some(c)) => c,
         _ => c_fit.clone(),
     };
-    let (c_yx, map_xy, near_samples) = refine_from(x, y, c_start, &c_fit, p, &near_positions, &mut stages)?;
+    let (c_yx, map_xy, near_samples) = refine_from(x, y, c_start, &c_fit, p, &near_positions, &pins, &mut stages)?;
     Ok(AxiomaticResult { map_xy, c_yx, c_fit, candidates, chosen, stages, near_samples, correction })
 }
 
@@ -495,6 +548,9 @@ struct ProbeContext<'a> {
     scale: f64,
     /// The fits' data F (n × q), G (m × q).
     data: (&'a Descriptors, &'a Descriptors),
+    /// The user's landmarks (module `landmarks`), pinned in the probes' ZoomOut.
+    landmarks: Option<&'a LandmarkData>,
+    pins: &'a [(usize, usize)],
 }
 
 impl ProbeContext<'_> {
@@ -510,7 +566,7 @@ impl ProbeContext<'_> {
             (Some(near), Some(sy)) => {
                 let (xs, ys) = (&self.probe_samples.vertices, &sy.vertices);
                 let scope = Scope::Near { near, x_cells: xs, y_cells: ys };
-                let c = refine::zoomout(phi, psi, self.probe_samples, c.as_ref(), &o, scope)?;
+                let c = refine::zoomout_pinned(phi, psi, self.probe_samples, c.as_ref(), &o, scope, self.pins)?;
                 let map = match self.patch {
                     // The images of the patch; other entries stay 0 (unread).
                     Some(patch) => {
@@ -522,7 +578,7 @@ impl ProbeContext<'_> {
                 (c, map)
             }
             _ => {
-                let c = refine::zoomout(phi, psi, self.probe_samples, c.as_ref(), &o, Scope::Exact)?;
+                let c = refine::zoomout_pinned(phi, psi, self.probe_samples, c.as_ref(), &o, Scope::Exact, self.pins)?;
                 let map = match self.patch {
                     Some(patch) => spread(
                         phi.nrows(),
@@ -535,6 +591,10 @@ impl ProbeContext<'_> {
             }
         };
         let mut candidate = Candidate::unscored(k);
+        if let Some(l) = self.landmarks {
+            let images = refine::map_of_pullback(phi, psi, c.as_ref(), Some(&l.xs), Scope::Exact)?;
+            candidate.landmark_error = l.error(&images);
+        }
         candidate.orientation = match (tx, py, ny) {
             (Some(tx), Some(py), Some(ny)) if self.patch.is_some() => {
                 refine::orientation_agreement_around(tx, py, ny, &map, self.centres)?
@@ -623,15 +683,21 @@ fn spread(n: usize, rows: &[usize], images: &[usize]) -> Vec<usize> {
     map
 }
 
+/// Whether a candidate's orientation agrees with the asked one (≥ 0 for preserving maps, ≤ 0 for
+/// reversing ones; NaN and `Ignore` always).
+fn agrees(c: &Candidate, orientation: Orientation) -> bool {
+    match orientation {
+        Orientation::Preserve => c.orientation >= 0.0 || c.orientation.is_nan(),
+        Orientation::Reverse => c.orientation <= 0.0 || c.orientation.is_nan(),
+        Orientation::Ignore => true,
+    }
+}
+
 /// The candidate with the smallest `score` among those whose orientation agrees with the asked
 /// one (orientation ≥ 0 for preserving maps, ≤ 0 for reversing ones; all when none does or
 /// orientation is ignored); the first candidate when no score could be measured (NaN).
 fn choose(candidates: &[Candidate], orientation: Orientation, score: impl Fn(&Candidate) -> f64) -> usize {
-    let agrees = |c: &Candidate| match orientation {
-        Orientation::Preserve => c.orientation >= 0.0 || c.orientation.is_nan(),
-        Orientation::Reverse => c.orientation <= 0.0 || c.orientation.is_nan(),
-        Orientation::Ignore => true,
-    };
+    let agrees = |c: &Candidate| agrees(c, orientation);
     let any = candidates.iter().any(agrees);
     (0..candidates.len())
         .filter(|&a| !any || agrees(&candidates[a]))
@@ -650,7 +716,7 @@ fn choose(candidates: &[Candidate], orientation: Orientation, score: impl Fn(&Ca
 /// The final refinement from the pull-back `c_start`: ZoomOut (or its bijective variant) to
 /// `p.refine.k_final`, then the polish. Returns (the final pull-back, map_xy, the samples of the
 /// restricted final searches) and appends its stage times.
-#[allow(clippy::type_complexity)]
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
 fn refine_from(
     x: &PreparedShape,
     y: &PreparedShape,
@@ -658,19 +724,34 @@ fn refine_from(
     c_fit: &Pullback,
     p: &AxiomaticPipeline,
     near_positions: &Option<refine::Near>,
+    pins: &[(usize, usize)],
     stages: &mut Vec<(String, f64)>,
 ) -> Result<(Pullback, Vec<usize>, Option<(Samples, Samples)>)> {
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
     let t = std::time::Instant::now();
     crate::progress::stage("zoomout")?;
+    // Landmarks (module `landmarks`) are samples of both shapes, pinned in every point map.
+    let (lm_x, lm_y): (Vec<usize>, Vec<usize>) = pins.iter().copied().unzip();
+    let pin = |mut map: Vec<usize>| {
+        for &(i, j) in pins {
+            map[i] = j;
+        }
+        map
+    };
     if p.refine.k_final == 0 {
-        let unrefined = (c_fit.clone(), refine::map_of_pullback(phi, psi, c_fit.as_ref(), None, Scope::Exact)?, None);
+        let map = pin(refine::map_of_pullback(phi, psi, c_fit.as_ref(), None, Scope::Exact)?);
+        let unrefined = (c_fit.clone(), map, None);
         stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
         return Ok(unrefined);
     }
     // Samples computed once for ZoomOut (or its bijective variant) and the polish.
-    let sx = samples_of(x, p.refine.samples)?;
-    let sy = if p.bijective > 0.0 || p.polish > 0 { Some(samples_of(y, p.refine.samples)?) } else { None };
+    let pw = p.landmarks.pin_weight;
+    let sx = landmarks::with_landmarks(samples_of(x, p.refine.samples)?, &lm_x, pw);
+    let sy = if p.bijective > 0.0 || p.polish > 0 {
+        Some(landmarks::with_landmarks(samples_of(y, p.refine.samples)?, &lm_y, pw))
+    } else {
+        None
+    };
     let (c, map) = match &sy {
         Some(sy) if p.bijective > 0.0 => {
             let o = refine::BijectiveOptions {
@@ -681,7 +762,7 @@ fn refine_from(
             // The start of the pull-back of the inverse map: C_yxᵀ (orthonormal maps).
             let c_xy0 = c_start.transposed();
             let (c, m, _) = refine::bijective_zoomout(phi, psi, &sx, sy, c_start.as_ref(), c_xy0.as_ref(), &o)?;
-            (c, Some(m))
+            (c, Some(pin(m)))
         }
         _ => {
             let o = ZoomOutOptions { k_final: p.refine.k_final.max(c_start.k_x()), step: p.refine.step };
@@ -691,11 +772,11 @@ fn refine_from(
                     (Some(near), Some(sy)) => Scope::Near { near, x_cells: &sx.vertices, y_cells: &sy.vertices },
                     _ => Scope::Exact,
                 };
-                let c = refine::zoomout(phi, psi, &sx, c_start.as_ref(), &o, scope)?;
+                let c = refine::zoomout_pinned(phi, psi, &sx, c_start.as_ref(), &o, scope, pins)?;
                 (c, None)
             } else {
-                let c = refine::zoomout(phi, psi, &sx, c_start.as_ref(), &o, Scope::Exact)?;
-                let m = refine::map_of_pullback(phi, psi, c.as_ref(), None, Scope::Exact)?;
+                let c = refine::zoomout_pinned(phi, psi, &sx, c_start.as_ref(), &o, Scope::Exact, pins)?;
+                let m = pin(refine::map_of_pullback(phi, psi, c.as_ref(), None, Scope::Exact)?);
                 (c, Some(m))
             }
         }
@@ -708,14 +789,14 @@ fn refine_from(
             crate::progress::stage("polish")?;
             let sy = match sy {
                 Some(sy) => sy,
-                None => samples_of(y, p.refine.samples)?,
+                None => landmarks::with_landmarks(samples_of(y, p.refine.samples)?, &lm_y, pw),
             };
             let near = near_positions.as_ref().filter(|_| p.refine.samples > 0);
             let scope = match near {
                 Some(near) => Scope::Near { near, x_cells: &sx.vertices, y_cells: &sy.vertices },
                 None => Scope::Exact,
             };
-            let (c, map) = refine::bijective_polish(phi, psi, &sx, &sy, c.as_ref(), p.polish, scope)?;
+            let (c, map) = refine::bijective_polish_pinned(phi, psi, &sx, &sy, c.as_ref(), p.polish, scope, pins)?;
             stages.push(("polish".to_string(), t.elapsed().as_secs_f64()));
             Ok((Pullback(c), map, near.map(|_| (sx, sy))))
         }

@@ -12,6 +12,7 @@
 //! pull-back ([`crate::fmap::Pullback::transposed`]).
 
 pub mod axiomatic;
+pub mod landmarks;
 pub mod options;
 pub mod search;
 
@@ -291,6 +292,8 @@ pub struct MatchReport<'a> {
     pub candidates: Option<CandidateChoice<'a>>,
     /// The axiomatic method's basin search: what its correction did.
     pub correction: Option<&'a search::Correction>,
+    /// Number of user landmarks the run used ([`landmarks`]; 0: none).
+    pub landmarks: usize,
     /// The stages in order.
     pub stages: Vec<StageTime<'a>>,
 }
@@ -342,6 +345,7 @@ impl MatchResult {
             solver: self.solver.as_ref(),
             candidates: self.candidates.as_ref().map(|(c, i)| CandidateChoice { candidates: c, chosen: *i }),
             correction: self.correction.as_ref(),
+            landmarks: if opts.method == Method::Axiomatic { opts.axiomatic.landmarks.pairs.len() } else { 0 },
             stages: self.stages.iter().map(|(s, t)| StageTime { stage: s, seconds: *t }).collect(),
         }
     }
@@ -555,6 +559,13 @@ pub fn run(
 ) -> Result<MatchResult> {
     opts.validate()?;
     if opts.method != Method::Axiomatic {
+        if !opts.axiomatic.landmarks.is_empty() {
+            return Err(Error::invalid(
+                "landmarks",
+                "landmarks act in the default (axiomatic) method only; for the other methods give them as data \
+                 (landmarks:pairs.txt)",
+            ));
+        }
         let orient = opts.method == Method::Completion
             && opts.completion.params.mu_prior > 0.0
             && opts.axiomatic.fit.weights.orientation > 0.0
@@ -572,7 +583,7 @@ pub fn run(
     let mut stages = r.stages;
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
     // The map Y → X from the final pull-back, searched as the final map X → Y was.
-    let map_yx = timed(&mut stages, "map Y → X", || match (&r.near_samples, x.positions(), y.positions()) {
+    let mut map_yx = timed(&mut stages, "map Y → X", || match (&r.near_samples, x.positions(), y.positions()) {
         (Some((sx, sy)), Some(px), Some(py)) => {
             let near = crate::refine::Near { x: px, y: py, cells: opts.axiomatic.near.cells };
             let scope = crate::refine::Scope::Near { near: &near, x_cells: &sx.vertices, y_cells: &sy.vertices };
@@ -580,6 +591,10 @@ pub fn run(
         }
         _ => crate::refine::map_yx_of_pullback(phi, psi, r.c_yx.as_ref(), crate::refine::Scope::Exact),
     })?;
+    // The landmarks' images are pinned in the map back too (module `landmarks`).
+    for &(i, j) in &opts.axiomatic.landmarks.pairs {
+        map_yx[j] = i;
+    }
     let r = MatchResult {
         map_xy: r.map_xy,
         map_yx,
