@@ -20,6 +20,18 @@
 //! `bs=N` samples of the basin search (0: none, candidates by edge distortion), `br=N` its
 //! correction rounds, `banch=N` its anchors on Y.
 //!
+//! Landmarks (issue 28, `funcorr match --landmarks`): `lm=N` gives the pipeline N ground-truth
+//! pairs, the farthest-point samples (Euclidean, on X) of the template points starting from the
+//! template point at position `lmseed · 7919 mod len` (`lmseed=S`, default 0: the first), with
+//! their ground-truth images; `lmw=W` their weight in the data, `lmpin=W` their sample weight in
+//! ZoomOut and the polish, `lmtol=T` their tolerance in the candidates' score
+//! (`funcorr::matching::landmarks::Landmarks`). The JSON line then has `"landmarks"` and
+//! `"lmseed"`; `"search"` has the chosen candidate's `"landmark_error"` and whether it was made
+//! from the landmarks.
+//! ```sh
+//! $E ../shared/data/tosca_nonisometric_r 0:2 "lm0:;lm3:lm=3;lm5:lm=5;lm10:lm=10;lm5s1:lm=5,lmseed=1"
+//! ```
+//!
 //! Point clouds: `CLOUD=y` (Y given as its vertices), `CLOUD=both`; `RESAMPLE=N` draws N points
 //! uniformly on the surface instead (vertices not shared). Errors are then measured on Y's mesh
 //! through the nearest vertex of each cloud point, and the template points of X are moved to the
@@ -90,6 +102,9 @@ struct Variant {
     nd: usize,
     kd: usize,
     ss: usize,
+    /// Landmarks (`lm=N`: N ground-truth pairs, `lmseed=S` which ones; 0: none).
+    lm: usize,
+    lm_seed: u64,
 }
 
 impl Variant {
@@ -97,6 +112,7 @@ impl Variant {
         let (name, rest) = spec.split_once(':').unwrap_or((spec, ""));
         let mut opts = MatchOptions { method: Method::Axiomatic, ..MatchOptions::default() };
         let (mut nd, mut kd, mut ss) = (100, 128, 2);
+        let (mut lm, mut lm_seed) = (0, 0);
         let a = &mut opts.axiomatic;
         for kv in rest.split(',').filter(|s| !s.is_empty()) {
             let (k, val) = kv.split_once('=').expect("key=value");
@@ -132,11 +148,27 @@ impl Variant {
                 "nd" => nd = u(),
                 "kd" => kd = u(),
                 "ss" => ss = u(),
+                "lm" => lm = u(),
+                "lmseed" => lm_seed = val.parse().expect("integer"),
+                "lmw" => a.landmarks.weight = f(),
+                "lmpin" => a.landmarks.pin_weight = f(),
+                "lmtol" => a.landmarks.tolerance = f(),
                 _ => panic!("unknown key {k}"),
             }
         }
-        Variant { name: name.to_string(), opts, nd, kd, ss }
+        Variant { name: name.to_string(), opts, nd, kd, ss, lm, lm_seed }
     }
+}
+
+/// `count` landmarks of the pair: farthest-point samples (Euclidean, on X) of the template points
+/// `gt_x`, starting from the template point at position `seed · 7919 mod len` (seed 0: the first),
+/// with their ground-truth images `gt_y`. Returns (vertex of X, vertex of Y) pairs.
+fn pick_landmarks(mesh: &TriMesh, gt_x: &[usize], gt_y: &[usize], count: usize, seed: u64) -> Vec<(usize, usize)> {
+    let len = gt_x.len();
+    let off = (seed as usize).wrapping_mul(7919) % len.max(1);
+    let order: Vec<usize> = (0..len).map(|t| (t + off) % len).collect();
+    let cand: Vec<usize> = order.iter().map(|&t| gt_x[t]).collect();
+    funcorr::spatial::farthest_points(mesh, &cand, count).into_iter().map(|p| (cand[p], gt_y[order[p]])).collect()
 }
 
 /// WKS from the first kd eigenpairs, every ss-th of nd kept.
@@ -503,7 +535,17 @@ fn main() -> Result<()> {
             let t = Instant::now();
             let run = || -> Result<matching::MatchResult> {
                 let (f, g) = (wks(&x.prepared, v)?, wks(&y.prepared, v)?);
-                matching::run_prepared(&x.prepared, &y.prepared, &f, &g, &v.opts)
+                let mut opts = v.opts.clone();
+                if v.lm > 0 {
+                    // Ground-truth landmarks, moved to the cloud points of the vertices.
+                    let to_x = |i: usize| x.vertex_to_point.as_ref().map_or(i, |p| p[i]);
+                    let to_y = |j: usize| y.vertex_to_point.as_ref().map_or(j, |p| p[j]);
+                    opts.axiomatic.landmarks.pairs = pick_landmarks(&x.mesh, &gt.x, &gt.y, v.lm, v.lm_seed)
+                        .into_iter()
+                        .map(|(i, j)| (to_x(i), to_y(j)))
+                        .collect();
+                }
+                matching::run(&x.prepared, &y.prepared, &f, &g, &opts)
             };
             let line = match run() {
                 Ok(r) => {
@@ -521,17 +563,22 @@ fn main() -> Result<()> {
                     let chosen = r.candidates.as_ref().map_or(0, |(c, i)| c[*i].k);
                     let search = match (&r.correction, &r.candidates) {
                         (Some(c), Some((cands, i))) => format!(
-                            "{{\"moved\":{},\"rounds\":{},\"start\":{:.4},\"end\":{:.4},\"corrected\":{}}}",
+                            "{{\"moved\":{},\"rounds\":{},\"start\":{:.4},\"end\":{:.4},\"corrected\":{},\"from_landmarks\":{},\"landmark_error\":{:.4}}}",
                             c.moved,
                             c.trace.len() - 1,
                             c.trace[0],
                             c.trace.iter().copied().fold(f64::INFINITY, f64::min),
-                            cands[*i].corrected_from.is_some()
+                            cands[*i].corrected_from.is_some(),
+                            cands[*i].from_landmarks,
+                            cands[*i].landmark_error
                         ),
                         _ => "null".to_string(),
                     };
                     let stages: Vec<String> = r.stages.iter().map(|(n, s)| format!("\"{n}\":{s:.3}")).collect();
                     let mut extra = String::new();
+                    if v.lm > 0 {
+                        extra += &format!(",\"landmarks\":{},\"lmseed\":{}", v.lm, v.lm_seed);
+                    }
                     if !perturb.is_empty() {
                         extra += &format!(",\"perturb\":\"{perturb}\"");
                     }

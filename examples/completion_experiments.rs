@@ -275,7 +275,7 @@ fn main() -> Result<()> {
         for name in &configs {
             let opts = config(name, f.q())?;
             let t = Instant::now();
-            let r = matching::run(&x.basis, &y.basis, Some((&x.lap, &y.lap)), &f, &g, &opts)?;
+            let r = matching::run_on_bases(&x.basis, &y.basis, Some((&x.lap, &y.lap)), &f, &g, &opts)?;
             let secs = t.elapsed().as_secs_f64();
             let s = summarize(&hard_errors(&r.map_xy, &gt, &geo, y.mesh.total_area())?);
             let iters = r.solver.as_ref().map_or(0, |s| s.iterations());

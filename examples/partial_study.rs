@@ -131,7 +131,7 @@ fn main() -> Result<()> {
                     funcorr::descriptors::signatures::wks_recipe(&y.basis, &r)?,
                 )
             };
-            matching::run_prepared(x, y, &f, &g, &opts)
+            matching::run(x, y, &f, &g, &opts)
         };
         let line = match run() {
             Ok(r) => {

@@ -271,7 +271,7 @@ fn propagation_cost(points: &[[f64; 3]], normals: &[[f64; 3]], i: usize, j: usiz
 /// Orients the normals consistently: from the point of each connected component of the kNN
 /// graph with the largest x coordinate, propagation along a minimum spanning tree of
 /// [`propagation_cost`], flipping a normal whenever it disagrees with its tree parent.
-fn orient_normals(points: &[[f64; 3]], nbrs: &[Vec<usize>], normals: &mut [[f64; 3]]) {
+fn propagate_orientation(points: &[[f64; 3]], nbrs: &[Vec<usize>], normals: &mut [[f64; 3]]) {
     let n = points.len();
     let mut done = vec![false; n];
     #[derive(PartialEq)]
@@ -318,6 +318,39 @@ fn orient_normals(points: &[[f64; 3]], nbrs: &[Vec<usize>], normals: &mut [[f64;
             }
         }
     }
+}
+
+/// Consistently oriented normals of a cloud whose normals are given but whose signs cannot be
+/// trusted (a scanner's or a file's normals, some of them reversed): the lines of `normals` are
+/// kept, their signs are chosen by the same propagation as [`cloud_surface`]'s (a minimum spanning
+/// tree of [`propagation_cost`] over the [`ORIENTATION_NEIGHBOURS`] nearest neighbours, from the
+/// point of each component with the largest x, whose normal is made to point to +x — outward on
+/// a closed surface). Any share of reversed inputs gives the same result: only the lines are used.
+///
+/// `points` n × 3, `normals` n × 3 (any nonzero length; returned unit length). Errors: sizes that
+/// differ, fewer than [`ORIENTATION_NEIGHBOURS`] + 1 points, a non-finite coordinate, or a zero or
+/// non-finite normal, naming the point.
+pub fn orient_normals(points: &[[f64; 3]], normals: &[[f64; 3]]) -> Result<Vec<[f64; 3]>> {
+    if normals.len() != points.len() {
+        return Err(Error::invalid(
+            "normals",
+            format!("{} normals for {} points (one per point is needed)", normals.len(), points.len()),
+        ));
+    }
+    if let Some(i) = points.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
+        return Err(Error::invalid("points", format!("point {i} has a non-finite coordinate")));
+    }
+    let mut unit = Vec::with_capacity(normals.len());
+    for (i, nrm) in normals.iter().enumerate() {
+        let len = dot(*nrm, *nrm).sqrt();
+        if !(len.is_finite() && len > 0.0) {
+            return Err(Error::invalid("normals", format!("normal {i} is zero or not finite: {nrm:?}")));
+        }
+        unit.push([nrm[0] / len, nrm[1] / len, nrm[2] / len]);
+    }
+    let nbrs = neighbours(points, ORIENTATION_NEIGHBOURS)?;
+    propagate_orientation(points, &nbrs, &mut unit);
+    Ok(unit)
 }
 
 /// The neighbours of every point on its own side of the surface: those whose oriented normal
@@ -368,7 +401,7 @@ pub fn cloud_surface(points: &[[f64; 3]], k: usize) -> Result<CloudSurface> {
     let near = nearest(NORMAL_NEIGHBOURS);
     let mut normals: Vec<[f64; 3]> =
         (0..points.len()).into_par_iter().map(|i| pca_normal(points, i, &near[i])).collect();
-    orient_normals(points, &nearest(ORIENTATION_NEIGHBOURS), &mut normals);
+    propagate_orientation(points, &nearest(ORIENTATION_NEIGHBOURS), &mut normals);
     let nbrs = same_side_neighbours(&nbrs, &normals);
     let fans: Vec<Vec<[u32; 3]>> =
         (0..points.len()).into_par_iter().map(|i| delaunay_fan(points, i, &nbrs[i], normals[i])).collect();
@@ -535,6 +568,57 @@ mod tests {
         }
         // The fans have more edges than the mesh: their paths are no worse than the mesh's.
         assert!(worst <= worst_mesh + 0.01, "cloud paths overestimate by up to {worst}, mesh edges by {worst_mesh}");
+    }
+
+    /// Given normals with 10 % of them reversed (seeded), the orientation makes them consistent
+    /// again: on a smooth sphere every one outward, and on the bundled FAUST vertex clouds (thin
+    /// hands and feet a few samples across) all but a small share.
+    #[test]
+    fn normals_with_a_tenth_reversed_are_oriented_consistently() {
+        let reverse_a_tenth = |normals: &[[f64; 3]], seed: u64| -> (Vec<[f64; 3]>, usize) {
+            let mut rng = crate::rng::Normal::new(seed);
+            let mut flipped = 0;
+            let out = normals
+                .iter()
+                .map(|&n| {
+                    if rng.uniform() < 0.1 {
+                        flipped += 1;
+                        [-n[0], -n[1], -n[2]]
+                    } else {
+                        n
+                    }
+                })
+                .collect();
+            (out, flipped)
+        };
+        let s = bumpy_sphere(3);
+        let truth = s.vertex_normals();
+        let (given, flipped) = reverse_a_tenth(&truth, 1);
+        assert!(flipped * 20 > truth.len() && flipped * 7 < truth.len(), "{flipped} of {} reversed", truth.len());
+        let oriented = orient_normals(s.vertices(), &given).unwrap();
+        assert!(oriented.iter().zip(&truth).all(|(a, b)| dot(*a, *b) > 0.999), "every normal outward, lines kept");
+
+        let (mut reversed, mut total) = (0, 0);
+        for (seed, name) in [(2, "tr_reg_000"), (3, "tr_reg_001")] {
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/faust").join(format!("{name}.off"));
+            let crate::shape::Shape::Mesh(m) = crate::shape::Shape::load(&path).unwrap() else { panic!("a mesh") };
+            let truth = m.vertex_normals();
+            let (given, _) = reverse_a_tenth(&truth, seed);
+            let oriented = orient_normals(m.vertices(), &given).unwrap();
+            reversed += oriented.iter().zip(&truth).filter(|(a, b)| dot(**a, **b) <= 0.0).count();
+            total += truth.len();
+        }
+        let share = reversed as f64 / total as f64;
+        // Measured when written: 0.14 % (a few finger and toe tips, where the kNN graph crosses
+        // between the sides); 10 % before orientation.
+        assert!(share < 0.01, "{:.2} % of the normals still reversed", 100.0 * share);
+
+        let e = orient_normals(s.vertices(), &given[..10]).unwrap_err().to_string();
+        assert!(e.contains("normals"), "{e}");
+        let mut zero = given.clone();
+        zero[7] = [0.0; 3];
+        let e = orient_normals(s.vertices(), &zero).unwrap_err().to_string();
+        assert!(e.contains("normal 7"), "{e}");
     }
 
     #[test]

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use funcorr::descriptors::signatures::{wks_recipe, WksRecipe};
-use funcorr::matching::{run_prepared, MatchOptions};
+use funcorr::matching::{run, MatchOptions};
 use funcorr::prepared::{LaplacianChoice, PreparedShape};
 use funcorr::progress::{self, Monitor};
 use funcorr::shape::{Shape, TriMesh};
@@ -90,7 +90,7 @@ fn cancelled_computations_stop_within_a_second_in_every_stage() {
     ];
     let order = |s: &str| stages.iter().position(|&t| t == s).unwrap_or_else(|| panic!("unknown stage {s}"));
     for stage in stages {
-        let (r, at, latency) = cancel_at(stage, Duration::from_millis(20), || run_prepared(&px, &py, &f, &g, &opts));
+        let (r, at, latency) = cancel_at(stage, Duration::from_millis(20), || run(&px, &py, &f, &g, &opts));
         let at = at.unwrap_or_else(|| panic!("the pipeline never reached {stage}"));
         match r {
             // The stage that saw the cancellation: the one it was made in, or a later one when
@@ -106,7 +106,7 @@ fn cancelled_computations_stop_within_a_second_in_every_stage() {
         assert!(latency < LATENCY, "{stage} (cancelled in {at}): {latency:?} after the cancellation");
     }
     // Uncancelled, the same pipeline runs to its end (the cancellations left nothing behind).
-    let full = Monitor::new().install(2, || run_prepared(&px, &py, &f, &g, &opts)).unwrap();
+    let full = Monitor::new().install(2, || run(&px, &py, &f, &g, &opts)).unwrap();
     assert_eq!(full.map_xy.len(), x.n_vertices());
 
     // The process-wide interrupt cancels computations on any thread, also without a monitor

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use funcorr::descriptors::signatures::{wks_recipe, WksRecipe};
-use funcorr::matching::{run_prepared, MatchOptions};
+use funcorr::matching::{run, MatchOptions};
 use funcorr::prepared::{LaplacianChoice, PreparedShape};
 use funcorr::shape::{Shape, TriMesh};
 
@@ -24,7 +24,7 @@ fn default_map(x: &TriMesh, y: &TriMesh) -> Vec<usize> {
     let (px, py) = (prep(x), prep(y));
     let r = WksRecipe::default();
     let (f, g) = (wks_recipe(&px.basis, &r).unwrap(), wks_recipe(&py.basis, &r).unwrap());
-    run_prepared(&px, &py, &f, &g, &opts).unwrap().map_xy
+    run(&px, &py, &f, &g, &opts).unwrap().map_xy
 }
 
 /// A rotation by `angle` about the unit axis (1, 2, 3) / √14, then a scaling by `s`.

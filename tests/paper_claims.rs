@@ -50,7 +50,7 @@ fn completion_beats_eq5_with_scarce_data_at_the_same_rank() {
     };
     let geo = ExactGeodesics::new(&my).unwrap();
     let error = |opts: &MatchOptions| {
-        let r = matching::run(&bx, &by, Some((&lx, &ly)), &f, &g, opts).unwrap();
+        let r = matching::run_on_bases(&bx, &by, Some((&lx, &ly)), &f, &g, opts).unwrap();
         100.0 * summarize(&hard_errors(&r.map_xy, &gt, &geo, my.total_area()).unwrap()).mean
     };
     let base =

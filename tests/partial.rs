@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use funcorr::descriptors::signatures::{wks_recipe, WksRecipe};
 use funcorr::matching::partial::{detect, pair_wks, PartialMode, PartialOptions};
-use funcorr::matching::{run_prepared, MatchOptions};
+use funcorr::matching::{run, MatchOptions};
 use funcorr::prepared::{LaplacianChoice, PreparedShape};
 use funcorr::shape::{Shape, TriMesh};
 
@@ -79,7 +79,7 @@ fn cut_copy_match(
     assert!(det.partial, "{det:?}");
     assert!(det.area_ratio < 0.9 && det.boundary_x.unwrap() > 0.25 && det.boundary_y == Some(0.0), "{det:?}");
     let (f, g) = pair_wks(&x, &y, &WksRecipe::default()).unwrap();
-    let r = run_prepared(&x, &y, &f, &g, &opts).unwrap();
+    let r = run(&x, &y, &f, &g, &opts).unwrap();
     assert!(r.partial.as_ref().is_some_and(|d| d.partial));
     (orig, x, y, det, r)
 }
@@ -157,7 +157,7 @@ fn whole_shapes_are_not_taken_for_parts() {
         (wks_recipe(&x.basis, &WksRecipe::default()).unwrap(), wks_recipe(&y.basis, &WksRecipe::default()).unwrap());
     let mut opts = MatchOptions::for_method(funcorr::matching::Method::Fmap, true);
     opts.partial.mode = PartialMode::Always;
-    let e = run_prepared(&x, &y, &f, &g, &opts).unwrap_err().to_string();
+    let e = run(&x, &y, &f, &g, &opts).unwrap_err().to_string();
     assert!(e.contains("partial"), "{e}");
 }
 
@@ -177,7 +177,7 @@ fn a_point_cloud_part_is_matched_with_partial() {
     opts.partial.mode = PartialMode::Always;
     opts.partial.wks = Some(WksRecipe::default());
     let (f, g) = pair_wks(&x, &y, &WksRecipe::default()).unwrap();
-    let r = run_prepared(&x, &y, &f, &g, &opts).unwrap();
+    let r = run(&x, &y, &f, &g, &opts).unwrap();
     assert!(r.partial.as_ref().is_some_and(|d| d.partial && d.boundary_x.is_none()));
     assert_eq!(r.map_xy.len(), n);
     let py = y.positions().unwrap();

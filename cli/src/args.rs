@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use clap::ValueEnum;
+use serde::Serialize;
 
 use funcorr::spectral::BasisCache;
 
@@ -79,7 +80,8 @@ impl CacheArgs {
     }
 }
 
-#[derive(Clone, Copy, PartialEq, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub(crate) enum Refine {
     /// The method's own point map (nearest neighbours in the spectral embedding).
     None,
@@ -118,7 +120,8 @@ impl From<MethodChoice> for funcorr::matching::Method {
     }
 }
 
-#[derive(Clone, Copy, PartialEq, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub(crate) enum OrientationChoice {
     /// Orientation-preserving maps (two scans of the same kind of object).
     Preserve,
@@ -128,7 +131,8 @@ pub(crate) enum OrientationChoice {
     Ignore,
 }
 
-#[derive(Clone, Copy, PartialEq, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub(crate) enum MaskChoice {
     /// The resolvent mask of Ren et al. 2019 (γ = 0.5).
     Resolvent,
@@ -136,7 +140,8 @@ pub(crate) enum MaskChoice {
     Standard,
 }
 
-#[derive(Clone, Copy, PartialEq, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub(crate) enum FormChoice {
     /// (11): T = Ψ_k' A Bᵀ Φ_k'ᵀ, A and B k' × k.
     Subspace,
@@ -148,7 +153,8 @@ pub(crate) enum FormChoice {
     LowNorm,
 }
 
-#[derive(Clone, Copy, PartialEq, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub(crate) enum ScalingChoice {
     /// Scale-free weights: unit-area shapes, relative data term (see the library docs).
     Unit,
@@ -165,7 +171,8 @@ impl From<ScalingChoice> for funcorr::completion::Scaling {
     }
 }
 
-#[derive(Clone, Copy, PartialEq, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub(crate) enum ExtractChoice {
     /// Nearest neighbours of the rows of Φ_k' B among the rows of Ψ_k' A.
     Nn,
@@ -176,7 +183,8 @@ pub(crate) enum ExtractChoice {
 }
 
 /// The preconditioner of the completion method's L-BFGS (subspace form).
-#[derive(Clone, Copy, PartialEq, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub(crate) enum PreconditionChoice {
     /// None (L-BFGS's scalar initial Hessian).
     Off,
@@ -198,7 +206,8 @@ impl From<PreconditionChoice> for funcorr::completion::Precondition {
 }
 
 /// Arithmetic of the completion method's L1 products ([`funcorr::completion::Precision`]).
-#[derive(Clone, Copy, PartialEq, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub(crate) enum PrecisionChoice {
     /// f64 products.
     F64,
@@ -221,7 +230,8 @@ pub(crate) fn l1_precision(
     }
 }
 
-#[derive(Clone, Copy, PartialEq, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub(crate) enum InitChoice {
     /// A = C₀ zero-padded, B = I.
     Pad,
@@ -229,7 +239,8 @@ pub(crate) enum InitChoice {
     Svd,
 }
 
-#[derive(Clone, Copy, PartialEq, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub(crate) enum OptimizerChoice {
     /// L-BFGS on the factors.
     Lbfgs,
@@ -248,9 +259,34 @@ pub(crate) fn defaults() -> funcorr::matching::MatchOptions {
     funcorr::matching::MatchOptions::default()
 }
 
+/// A finite real number: the options' numbers (NaN and ±∞ are refused as they are parsed).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(transparent)]
+pub(crate) struct Finite(pub(crate) f64);
+
+impl std::str::FromStr for Finite {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let x: f64 = s.parse().map_err(|e: std::num::ParseFloatError| e.to_string())?;
+        if x.is_finite() {
+            Ok(Finite(x))
+        } else {
+            Err(format!("must be finite, got {x}"))
+        }
+    }
+}
+
+impl std::fmt::Display for Finite {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        std::fmt::Display::fmt(&self.0, f)
+    }
+}
+
 /// Settings of the matching pipeline shared by `match` and `bench`: the method's parameters,
-/// the point-map extraction and the refinement.
-#[derive(clap::Args, Clone)]
+/// the point-map extraction and the refinement. Every field is the option of the library's table
+/// of its name (`funcorr::matching::MATCH_OPTIONS`, the flag with `_` for `-`), to which
+/// `crate::options::settings` hands it.
+#[derive(clap::Args, Clone, Serialize)]
 pub(crate) struct PipelineArgs {
     /// Form of the completion method.
     #[arg(long, value_enum, default_value = "subspace")]
@@ -268,31 +304,31 @@ pub(crate) struct PipelineArgs {
     /// term (0: the paper's plain eq. (5)); also used for the completion method's start.
     /// Default: 1e-3 for rich data, 0 for scarce data (measured best, EXPERIMENTS.md).
     #[arg(long)]
-    pub(crate) commutativity: Option<f64>,
+    pub(crate) commutativity: Option<Finite>,
     /// Normalization of the completion method's weights.
     #[arg(long, value_enum, default_value = "unit")]
     pub(crate) scaling: ScalingChoice,
     /// μ1, weight of the Dirichlet energy on X (default: per --scaling and --form; with
     /// --scaling unit 0.01 for the subspace form, 0.3 for fixed-rank, low-rank and low-norm).
     #[arg(long)]
-    pub(crate) mu1: Option<f64>,
+    pub(crate) mu1: Option<Finite>,
     /// μ2, weight of the Dirichlet energy on Y (default: as μ1).
     #[arg(long)]
-    pub(crate) mu2: Option<f64>,
+    pub(crate) mu2: Option<Finite>,
     /// μ3, weight of the L1 term.
     #[arg(long)]
-    pub(crate) mu3: Option<f64>,
+    pub(crate) mu3: Option<Finite>,
     /// μ4, weight of the low-norm term.
     #[arg(long)]
-    pub(crate) mu4: Option<f64>,
+    pub(crate) mu4: Option<Finite>,
     /// ξ of the smoothed absolute value √(t² + ξ).
     #[arg(long)]
-    pub(crate) xi: Option<f64>,
+    pub(crate) xi: Option<Finite>,
     /// Weight of the Laplacian-commutativity term (isometry prior) added to the completion
     /// objective; on by default because it won on the faust_r dev pairs (EXPERIMENTS.md);
     /// 0 gives the paper's pure form (11).
-    #[arg(long, default_value_t = funcorr::matching::DEFAULT_COMPLETION_COMMUTATIVITY)]
-    pub(crate) completion_commutativity: f64,
+    #[arg(long, default_value_t = Finite(funcorr::matching::DEFAULT_COMPLETION_COMMUTATIVITY))]
+    pub(crate) completion_commutativity: Finite,
     /// Size of the leading block of C the completion's commutativity term acts on (0: all k');
     /// also the block of the axiomatic prior (--completion-prior).
     #[arg(long, default_value_t = funcorr::matching::DEFAULT_COMPLETION_COMMUTATIVITY_K)]
@@ -301,8 +337,8 @@ pub(crate) struct PipelineArgs {
     /// the axiomatic method without its descriptor term — Laplacian commutativity with --mask,
     /// descriptor commutativity and orientation with --w-laplacian, --w-commutativity,
     /// --w-orientation and --orientation — on the leading block of C (subspace form (11) only).
-    #[arg(long, default_value_t = 0.0)]
-    pub(crate) completion_prior: f64,
+    #[arg(long, default_value_t = Finite(0.0))]
+    pub(crate) completion_prior: Finite,
     /// Initialization of the completion method from the eq. (5) map.
     #[arg(long, value_enum, default_value = "pad")]
     pub(crate) init: InitChoice,
@@ -316,8 +352,8 @@ pub(crate) struct PipelineArgs {
     #[arg(long, default_value_t = defaults().completion.optimize.max_iterations)]
     pub(crate) max_iterations: usize,
     /// Stop when the objective's relative decrease in one iteration is at most this.
-    #[arg(long, default_value_t = defaults().completion.optimize.rel_tol)]
-    pub(crate) rel_tol: f64,
+    #[arg(long, default_value_t = Finite(defaults().completion.optimize.rel_tol))]
+    pub(crate) rel_tol: Finite,
     /// Evaluate the completion method's L1 term on this many farthest-point samples of each
     /// shape, weighted by their Voronoi areas (0: on every pair of vertices, as the paper).
     /// Default: 1000 with the unit scaling, 0 with `--scaling paper` (the samples need the
@@ -349,8 +385,8 @@ pub(crate) struct PipelineArgs {
     pub(crate) map_check_every: usize,
     /// Fraction of the checked vertices whose image may change between two checks
     /// (--map-check-every).
-    #[arg(long, default_value_t = defaults().completion.settled.map_or(0.005, |s| s.tolerance))]
-    pub(crate) map_tolerance: f64,
+    #[arg(long, default_value_t = Finite(defaults().completion.settled.map_or(0.005, |s| s.tolerance)))]
+    pub(crate) map_tolerance: Finite,
     /// Point-map extraction of the completion method.
     #[arg(long, value_enum, default_value = "nn")]
     pub(crate) extract: ExtractChoice,
@@ -385,8 +421,10 @@ pub(crate) struct PipelineArgs {
     /// what it found.
     #[arg(long, conflicts_with = "no_partial")]
     pub(crate) partial: bool,
-    /// Match X as a whole shape even when it looks like a part of Y (no detection).
+    /// Match X as a whole shape even when it looks like a part of Y (no detection): the
+    /// library's option `partial` set to false.
     #[arg(long)]
+    #[serde(skip)]
     pub(crate) no_partial: bool,
     /// Vertex pairs n·m above which the axiomatic method's final point maps are searched near
     /// the map of its samples instead of exactly (large shapes).
@@ -406,17 +444,17 @@ pub(crate) struct PipelineArgs {
     #[arg(long, value_delimiter = ',')]
     pub(crate) candidates: Option<Vec<usize>>,
     /// Weight of descriptor preservation in the axiomatic energy.
-    #[arg(long, default_value_t = defaults().axiomatic.fit.weights.descriptors)]
-    pub(crate) w_descriptors: f64,
+    #[arg(long, default_value_t = Finite(defaults().axiomatic.fit.weights.descriptors))]
+    pub(crate) w_descriptors: Finite,
     /// Weight of Laplacian commutativity in the axiomatic energy.
-    #[arg(long, default_value_t = defaults().axiomatic.fit.weights.laplacian)]
-    pub(crate) w_laplacian: f64,
+    #[arg(long, default_value_t = Finite(defaults().axiomatic.fit.weights.laplacian))]
+    pub(crate) w_laplacian: Finite,
     /// Weight of descriptor commutativity in the axiomatic energy.
-    #[arg(long, default_value_t = defaults().axiomatic.fit.weights.commutativity)]
-    pub(crate) w_commutativity: f64,
+    #[arg(long, default_value_t = Finite(defaults().axiomatic.fit.weights.commutativity))]
+    pub(crate) w_commutativity: Finite,
     /// Weight of the orientation term in the axiomatic energy.
-    #[arg(long, default_value_t = defaults().axiomatic.fit.weights.orientation)]
-    pub(crate) w_orientation: f64,
+    #[arg(long, default_value_t = Finite(defaults().axiomatic.fit.weights.orientation))]
+    pub(crate) w_orientation: Finite,
     /// Laplacian-commutativity mask of the axiomatic energy.
     #[arg(long, value_enum, default_value = "resolvent")]
     pub(crate) mask: MaskChoice,

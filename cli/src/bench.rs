@@ -19,7 +19,7 @@ use funcorr::io::staged::StagedDir;
 use funcorr::{Error, Result};
 
 use crate::args::{CacheArgs, GeodesicsChoice, MethodChoice, PipelineArgs, ScalingChoice};
-use crate::options::pipeline_options;
+use crate::options::{settings, Flags};
 
 /// Arguments of `funcorr bench`.
 #[derive(clap::Args)]
@@ -217,7 +217,7 @@ pub(crate) fn bench(args: &BenchArgs) -> Result<()> {
             &pairs,
             &args.methods,
             data.clone(),
-            &|m, rich| pipeline_options(&args.pipe, m, rich),
+            &|m, rich| settings(&args.pipe, m)?.resolve_as(rich, &Flags),
             !args.no_symmetric,
             args.geodesics,
             &args.cache,
@@ -587,7 +587,8 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
                 o.completion.multiscale = stages;
             }
             // The map the refinement starts from: the leading refine_k block of C.
-            o.completion.settled = crate::options::settled_map(a.map_check_every, a.map_tolerance, o.refine_k)?;
+            o.completion.settled =
+                funcorr::matching::options::settled_map(a.map_check_every, a.map_tolerance, o.refine_k, &Flags)?;
             Ok(o)
         };
         let report = pool.install(|| {

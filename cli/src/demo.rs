@@ -80,7 +80,7 @@ pub(crate) fn demo_match(out: &Path, (mx, bx): (&TriMesh, &Basis), (my, by): (&T
     // `--data wks` (the default): pyFM's WKS recipe, through the one `--data` grammar.
     let spec: funcorr::descriptors::spec::PairDataSpec = DEFAULT_DATA.parse()?;
     let (f, g) = spec.functions(px.parts(), py.parts(), &Default::default())?;
-    let r = funcorr::matching::run_prepared(&px, &py, &f, &g, &opts)?;
+    let r = funcorr::matching::run(&px, &py, &f, &g, &opts)?;
     let (x, y) = (&px.shape, &py.shape);
     let seconds = t.elapsed().as_secs_f64();
     let vts = |i: usize, n: usize| {

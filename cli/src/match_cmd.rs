@@ -2,13 +2,14 @@
 
 use std::path::{Path, PathBuf};
 
+use funcorr::descriptors::spec::PairDataSpec;
 use funcorr::shape::Shape;
 use funcorr::{Error, Result};
 
 use crate::args::{
     CacheArgs, LaplacianArgs, MethodChoice, PipelineArgs, SegmentationArgs, DEFAULT_DATA, DEFAULT_SIZE, DEFAULT_VIEW,
 };
-use crate::options::{basis_demand, is_rich, pair_data, pipeline_options, prepared_shape, too_small};
+use crate::options::{pair_data, prepared_shape, settings, Flags};
 use crate::output::{describe, mesh_data, parse_size, write_colour_transfer, write_map_files};
 use crate::Stages;
 
@@ -29,6 +30,13 @@ pub(crate) struct MatchArgs {
     /// Functional-map method.
     #[arg(long, value_enum, default_value = "axiomatic")]
     pub(crate) method: MethodChoice,
+    /// Known corresponding points: a file of 0-based vertex pairs `i j` (vertex i of X, vertex j
+    /// of Y), one per line (`#` comments). They join the default pipeline as strongly weighted
+    /// landmark functions, in the choice among its candidates and pinned in every refinement step
+    /// (`funcorr::matching::landmarks`): for pairs no intrinsic method can decide (non-isometric or
+    /// strongly symmetric shapes), 3 to 10 points such as the head, hands and feet.
+    #[arg(long, value_name = "FILE")]
+    pub(crate) landmarks: Option<PathBuf>,
     #[command(flatten)]
     pub(crate) pipe: PipelineArgs,
     /// Write map.txt with 1-based vertex ids (MATLAB).
@@ -65,9 +73,15 @@ pub(crate) struct MatchArgs {
     pub(crate) quiet: bool,
 }
 
-/// The library options of `funcorr match` (defaults per method and data, see `--help`).
-pub(crate) fn match_options(args: &MatchArgs) -> Result<funcorr::matching::MatchOptions> {
-    pipeline_options(&args.pipe, args.method, is_rich(&args.data))
+/// The options of `funcorr match` by name and the library options they resolve to (defaults per
+/// method and data, see `--help`), for data `spec`.
+pub(crate) fn match_options(
+    args: &MatchArgs,
+    spec: &PairDataSpec,
+) -> Result<(funcorr::matching::MatchSettings, funcorr::matching::MatchOptions)> {
+    let s = settings(&args.pipe, args.method)?;
+    let opts = s.resolve_as(spec.is_rich(), &Flags)?;
+    Ok((s, opts))
 }
 
 /// Writes a k × k (or r × c) matrix as .npy.
@@ -80,11 +94,19 @@ pub(crate) fn write_mat_npy(path: &Path, c: &faer::Mat<f64>) -> Result<()> {
 pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     let mut st = Stages { quiet: args.quiet, parts: vec![] };
     // A malformed --data fails before any work.
-    args.data.parse::<funcorr::descriptors::spec::PairDataSpec>()?.standalone()?;
-    let opts = match_options(args)?;
+    let spec = args.data.parse::<PairDataSpec>()?.standalone()?;
+    let (settings, mut opts) = match_options(args, &spec)?;
+    if args.landmarks.is_some() && opts.method != funcorr::matching::Method::Axiomatic {
+        return Err(Error::invalid(
+            "--landmarks",
+            "landmarks act in the default method (--method axiomatic); for the other methods give them as data, \
+             --data landmarks:FILE",
+        ));
+    }
     let view = funcorr::viz::View::parse(&args.view)?;
     let size = parse_size(&args.size)?;
-    let (basis_k, demand) = basis_demand(&args.pipe, &opts)?;
+    let demand = settings.basis_demand(&opts, &Flags)?;
+    let basis_k = demand.size;
     // The output directory is created (and checked writable) before any work; it is published at
     // the end, or removed when the run fails.
     let staged = funcorr::io::staged::StagedDir::create(&args.output)?;
@@ -92,8 +114,13 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     let y = st.run("read", || Shape::load(&args.y))?;
     for (path, shape) in [(&args.x, &x), (&args.y, &y)] {
         if basis_k >= shape.n_vertices() {
-            return Err(too_small(path, shape.n_vertices(), &args.pipe, &opts, basis_k, &demand));
+            let name = funcorr::error::escape_path(path);
+            return Err(settings.too_small(&name, shape.n_vertices(), &opts, &demand, &Flags));
         }
+    }
+    if let Some(path) = &args.landmarks {
+        opts.axiomatic.landmarks.pairs =
+            funcorr::io::indices::read_index_pairs_file(path, false, x.n_vertices(), y.n_vertices())?;
     }
     if let Some(&bad) = args.soft.iter().find(|&&i| i >= x.n_vertices()) {
         return Err(Error::invalid("--soft", format!("vertex {bad} of X does not exist (n = {})", x.n_vertices())));
@@ -111,24 +138,13 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     st.parts.extend(stx.parts.into_iter().map(|s| format!("X {s}")));
     st.parts.extend(sty.parts.into_iter().map(|s| format!("Y {s}")));
     // A part of Y (detected or --partial) with the default WKS gets them at the same energies on
-    // both shapes (matching::partial::pair_wks).
-    let partial_wks = opts.method == funcorr::matching::Method::Axiomatic
-        && args.data.parse::<funcorr::descriptors::spec::PairDataSpec>()?
-            == funcorr::descriptors::spec::PairDataSpec::WksRecipe
-        && funcorr::matching::partial::detect(&px, &py, &opts.partial).partial;
-    // ... and they are computed again when the pipeline re-estimates the area ratio.
-    let mut opts = opts;
-    if partial_wks {
-        opts.partial.wks = Some(funcorr::descriptors::signatures::WksRecipe::default());
-    }
-    let (f, g) = st.run("data", || {
-        if partial_wks {
-            funcorr::matching::partial::pair_wks(&px, &py, &funcorr::descriptors::signatures::WksRecipe::default())
-        } else {
-            pair_data(&args.data, px.parts(), py.parts(), &args.seg)
-        }
-    })?;
-    let r = funcorr::matching::run_prepared(&px, &py, &f, &g, &opts)?;
+    // both shapes.
+    let (f, g) =
+        st.run("data", || match funcorr::matching::partial::partial_pair_data(&px, &py, &spec, &mut opts)? {
+            Some(fg) => Ok(fg),
+            None => pair_data(&spec, px.parts(), py.parts(), &args.seg),
+        })?;
+    let r = funcorr::matching::run(&px, &py, &f, &g, &opts)?;
     let (x, y) = (&px.shape, &py.shape);
     // The soft maps read C (between the input bases) with the input bases.
     let input_bases = (!args.soft.is_empty()).then(|| (px.input_basis(), py.input_basis()));
@@ -251,8 +267,9 @@ pub(crate) fn warn_components(path: &Path, p: &funcorr::PreparedShape) {
 mod tests {
     use super::*;
     use crate::{Cli, Command};
-    use clap::Parser;
-    use funcorr::matching::{MatchOptions, Method};
+    use clap::{CommandFactory, Parser};
+    use funcorr::matching::options::Kind;
+    use funcorr::matching::{MatchOptions, MatchSettings, Method, Spelling, Value, MATCH_OPTIONS};
 
     fn parsed(args: &[&str]) -> MatchArgs {
         let mut line = vec!["funcorr", "match", "X", "Y", "-o", "out"];
@@ -263,15 +280,21 @@ mod tests {
         }
     }
 
-    fn json(o: &MatchOptions) -> String {
-        serde_json::to_string(o).unwrap()
+    fn resolved(args: &[&str]) -> MatchOptions {
+        let a = parsed(args);
+        let spec = a.data.parse::<PairDataSpec>().unwrap();
+        match_options(&a, &spec).unwrap().1
+    }
+
+    fn json<T: serde::Serialize>(o: &T) -> serde_json::Value {
+        serde_json::to_value(o).unwrap()
     }
 
     /// The library's defaults are what `funcorr match` runs, method by method and for scarce
     /// and rich data; an option given on the command line changes them.
     #[test]
     fn the_cli_runs_the_library_defaults() {
-        assert_eq!(json(&match_options(&parsed(&[])).unwrap()), json(&MatchOptions::default()));
+        assert_eq!(json(&resolved(&[])), json(&MatchOptions::default()));
         for (flag, method) in [
             ("axiomatic", Method::Axiomatic),
             ("fmap", Method::Fmap),
@@ -280,17 +303,117 @@ mod tests {
             ("completion", Method::Completion),
         ] {
             for (data, rich) in [("wks", true), ("rich", true), ("persistence", false), ("landmarks:l.txt", false)] {
-                let a = parsed(&["--method", flag, "--data", data]);
-                assert_eq!(
-                    json(&match_options(&a).unwrap()),
-                    json(&MatchOptions::for_method(method, rich)),
-                    "{flag} {data}"
-                );
+                let o = resolved(&["--method", flag, "--data", data]);
+                assert_eq!(json(&o), json(&MatchOptions::for_method(method, rich)), "{flag} {data}");
             }
         }
-        let a = parsed(&["--polish", "0", "-k", "30"]);
-        let o = match_options(&a).unwrap();
+        let o = resolved(&["--polish", "0", "-k", "30"]);
         assert_eq!((o.axiomatic.polish, o.axiomatic.candidates.clone()), (0, vec![30]));
         assert_ne!(json(&o), json(&MatchOptions::default()));
+    }
+
+    /// The flags of `funcorr match` and the library's table of options (which is also the list
+    /// of keywords of the Python `funcorr.match`) cannot drift apart: every option of the table
+    /// is the flag of its name (`--` and the key with `-` for `_`, `-k` for `k`) with the same
+    /// choices, every other flag is one of the command line's own (inputs, outputs, the shapes'
+    /// preparation), and every flag sets the option of its name and no other.
+    #[test]
+    fn every_flag_is_the_library_option_of_its_name() {
+        let cmd = Cli::command();
+        let m = cmd.find_subcommand("match").expect("the match command");
+        let own = [
+            "x",
+            "y",
+            "data",
+            "one_based",
+            "soft",
+            "landmarks",
+            "view",
+            "size",
+            "no_render",
+            "no_html",
+            "output",
+            "quiet",
+            "function",
+            "threshold",
+            "hks_time",
+            "laplacian",
+            "cloud_neighbours",
+            "knn_k",
+            "vertex_weights",
+            "sigma",
+            "no_cache",
+            "cache_dir",
+            "no_partial",
+            "help",
+            "version",
+        ];
+        let mut flags: Vec<&str> =
+            m.get_arguments().map(|a| a.get_id().as_str()).filter(|id| !own.contains(id)).collect();
+        let mut keys: Vec<&str> = MATCH_OPTIONS.iter().map(|o| o.key).collect();
+        flags.sort_unstable();
+        keys.sort_unstable();
+        assert_eq!(flags, keys, "the flags of match beside its own, and the library's options");
+        let baseline = json(&settings(&parsed(&[]).pipe, parsed(&[]).method).unwrap());
+        for spec in MATCH_OPTIONS {
+            let arg = m.get_arguments().find(|a| a.get_id() == spec.key).expect("a flag");
+            let spelled = match (arg.get_short(), arg.get_long()) {
+                (Some(c), None) => format!("-{c}"),
+                (_, Some(l)) => format!("--{l}"),
+                (None, None) => unreachable!("a flag has a name"),
+            };
+            assert_eq!(spelled, Flags.name(spec.key), "the flag of {}", spec.key);
+            let examples: Vec<(Vec<String>, Value)> = match spec.kind {
+                Kind::Size => vec![(vec!["7".into()], Value::Size(7))],
+                Kind::Number => vec![(vec!["0.25".into()], Value::Number(0.25))],
+                Kind::Flag => vec![(vec![], Value::Flag(true))],
+                Kind::Sizes => vec![(vec!["7,9".into()], Value::Sizes(vec![7, 9]))],
+                Kind::Choice(names) => {
+                    let shown: Vec<String> = arg
+                        .get_possible_values()
+                        .iter()
+                        .filter(|v| !v.is_hide_set())
+                        .map(|v| v.get_name().to_string())
+                        .collect();
+                    assert_eq!(shown, names.to_vec(), "the choices of {}", spec.key);
+                    names.iter().map(|n| (vec![n.to_string()], Value::Choice(n.to_string()))).collect()
+                }
+            };
+            for (text, value) in examples {
+                let mut line = vec![spelled.clone()];
+                line.extend(text.iter().cloned());
+                let a = parsed(&line.iter().map(String::as_str).collect::<Vec<_>>());
+                let got = json(&settings(&a.pipe, a.method).unwrap());
+                let mut want = MatchSettings::default();
+                want.set(spec.key, value.clone()).unwrap();
+                assert_eq!(got[spec.key], json(&want)[spec.key], "{line:?}");
+                // No other option changed.
+                let others: Vec<&String> = got
+                    .as_object()
+                    .unwrap()
+                    .keys()
+                    .filter(|k| k.as_str() != spec.key && got[k.as_str()] != baseline[k.as_str()])
+                    .collect();
+                assert!(others.is_empty(), "{line:?} also set {others:?}");
+            }
+        }
+    }
+
+    /// `--partial` and `--no-partial` are the option `partial` true and false (unset: detected);
+    /// the partial path is the axiomatic method's, so another method with `--partial` is an
+    /// error naming the flag.
+    #[test]
+    fn partial_flags_are_the_partial_option() {
+        use funcorr::matching::partial::PartialMode;
+        assert_eq!(resolved(&[]).partial.mode, PartialMode::Auto);
+        assert_eq!(resolved(&["--partial"]).partial.mode, PartialMode::Always);
+        assert_eq!(resolved(&["--no-partial"]).partial.mode, PartialMode::Never);
+        let a = parsed(&["--no-partial"]);
+        assert_eq!(settings(&a.pipe, a.method).unwrap().partial, Some(false));
+        assert!(Cli::try_parse_from(["funcorr", "match", "X", "Y", "-o", "o", "--partial", "--no-partial"]).is_err());
+        let a = parsed(&["--partial", "--method", "fmap"]);
+        let spec = a.data.parse::<PairDataSpec>().unwrap();
+        let e = match_options(&a, &spec).unwrap_err().to_string();
+        assert!(e.contains("--partial"), "{e}");
     }
 }

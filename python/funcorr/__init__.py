@@ -454,21 +454,29 @@ def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str
     ``"segments:X.seg,Y.seg"``, ``"persistence"``, ``"mser"``, ``"landmarks:pairs.txt"``,
     ``"rich"``, ``"matrix:F.npy,G.npy"``) or a tuple ``(F (n, q), G (m, q))``.
 
-    ``options`` are the flags of ``funcorr match`` with ``_`` for ``-``: ``k``, ``kprime``,
+    ``options`` are the flags of ``funcorr match`` with ``_`` for ``-`` (the library's table of
+    options, ``_funcorr.match_option_keys()``, with its defaults and checks): ``k``, ``kprime``,
     ``candidates``, ``orientation`` (``"preserve"|"reverse"|"ignore"``), ``signed``,
     ``w_descriptors``, ``w_laplacian``, ``w_commutativity``, ``w_orientation``, ``mask``,
     ``refine`` (``"none"|"icp"|"zoomout"``), ``zoomout_to``, ``zoomout_step``,
     ``zoomout_samples``, ``polish``, ``commutativity``, ``form``
-    (``"subspace"|"fixed-rank"|"low-rank"|"low-norm"``), ``scaling``, ``mu1``…``mu4``, ``xi``,
+    (``"subspace"|"fixed-rank"|"low-rank"|"low-norm"``), ``scaling``, ``mu1``, ``mu2``, ``mu3``,
+    ``mu4``, ``xi``,
     ``init``, ``init_k``, ``optimizer``, ``max_iterations``, ``rel_tol``, ``extract``,
     ``refine_k``, ``icp_iterations``, ``completion_commutativity``,
     ``completion_commutativity_k``, ``completion_prior``, ``l1_samples``, ``l1_precision``
-    (``"f32"|"f64"``; ``l1_f32=True`` is the same as ``"f32"``),
+    (``"f32"|"f64"``; ``l1_f32`` True is the same as ``"f32"``),
     ``map_check_every``, ``map_tolerance``, ``precondition`` (``"off"|"quadratic"|"full"``),
     ``xi_stages``, ``multiscale``, ``near_above``, ``near_cells``; ``partial`` (True:
     ``--partial``, X is a part of Y; False: ``--no-partial``; None, the default: detected); the Laplacian options of
     :func:`prepare`; ``seg_function``, ``threshold``, ``hks_time``; ``cache_dir``. An unknown
     keyword raises TypeError; a bad value ValueError naming it.
+
+    ``landmarks``: known corresponding points for the default method, a (k, 2) integer array of
+    0-based pairs ``(vertex of X, vertex of Y)`` or the path of a file of such pairs (``i j`` per
+    line, as ``funcorr match --landmarks``). They join the fits' data, the choice among the
+    candidates and every refinement step (``map_xy[i] == j`` for every pair): for pairs no
+    intrinsic method can decide (non-isometric or strongly symmetric shapes).
 
     ``progress``: None (default: a bar on stderr in a terminal, a notebook-friendly one in
     Jupyter, nothing when stderr is a file or a pipe; ``$FUNCORR_PROGRESS=0`` turns it off),

@@ -175,6 +175,29 @@ pub(crate) fn indices(obj: &Bound<'_, PyAny>, name: &str, bound: usize) -> PyRes
         .collect()
 }
 
+/// A (k, 2) array of index pairs (i, j) with i < `n` and j < `m` (0-based), k ≥ 1.
+pub(crate) fn index_pairs(obj: &Bound<'_, PyAny>, name: &str, n: usize, m: usize) -> PyResult<Vec<(usize, usize)>> {
+    let a = int_array(obj, name, 2, "(k, 2)")?;
+    let r: PyReadonlyArray2<i64> = a.extract()?;
+    let v = r.as_array();
+    if v.ncols() != 2 || v.nrows() == 0 {
+        return Err(value_error(name, format!("expected shape (k, 2) with k ≥ 1, got {:?}", v.shape())));
+    }
+    (0..v.nrows())
+        .map(|p| {
+            let (i, j) = (v[(p, 0)], v[(p, 1)]);
+            if i < 0 || i as u64 >= n as u64 || j < 0 || j as u64 >= m as u64 {
+                Err(value_error(
+                    name,
+                    format!("row {p} is ({i}, {j}), out of range: X has {n} vertices, Y has {m} (indices are 0-based)"),
+                ))
+            } else {
+                Ok((i as usize, j as usize))
+            }
+        })
+        .collect()
+}
+
 /// A finite float matrix (rows × cols) as a faer matrix.
 pub(crate) fn matrix(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Mat<f64>> {
     let a = float_array(obj, name, 2, "(rows, cols)")?;

@@ -9,11 +9,12 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
 use funcorr::descriptors::Descriptors;
+use funcorr::matching::Keywords;
 use funcorr::prepared::PreparedShape;
 use funcorr::shape::Shape;
 
 use crate::arrays::{self, value_error, I64s};
-use crate::prepared::{cache_arg, check_k, laplacian_choice, prepared_arg, prepared_py, PyPrepared};
+use crate::prepared::{cache_arg, laplacian_choice, prepared_arg, prepared_py, PyPrepared};
 use crate::{compute, options};
 
 /// A shape argument of `match`: prepared already, or to be prepared with `k` eigenpairs.
@@ -81,12 +82,16 @@ fn match_shapes<'py>(
         Data::Given(..) => true,
     };
     let mut o = options::Opts::new(options)?;
-    let (opts, basis_k, who) = options::match_options(&mut o, rich)?;
+    let settings = options::match_settings(&mut o)?;
+    let opts = settings.resolve(rich).map_err(options::library_error)?;
+    let demand = settings.basis_demand(&opts, &Keywords).map_err(options::library_error)?;
+    let basis_k = demand.size;
     let preparation_keys = ["laplacian", "cloud_neighbours", "knn", "vertex_weights", "sigma", "cache_dir"];
     let given: Vec<&str> = preparation_keys.iter().copied().filter(|k| o.has(k)).collect();
     let choice = laplacian_choice(&mut o)?;
     let seg = options::segmentation(&mut o)?;
     let cache = cache_arg(o.take("cache_dir").as_ref())?;
+    let landmarks = o.take("landmarks").filter(|v| !v.is_none());
     o.finish()?;
     let (sx, sy) = (side(x, "X")?, side(y, "Y")?);
     if let (Some(key), true) = (given.first(), matches!(sx, Side::Ready(_)) && matches!(sy, Side::Ready(_))) {
@@ -97,17 +102,36 @@ fn match_shapes<'py>(
     }
     for (s, name) in [(&sx, "X"), (&sy, "Y")] {
         if let Side::Raw(shape) = s {
-            check_k(shape, basis_k, &who, &format!("{who} (for {name})"))?;
+            if basis_k >= shape.n_vertices() {
+                let e = settings.too_small(name, shape.n_vertices(), &opts, &demand, &Keywords);
+                return Err(options::library_error(e));
+            }
         }
         if needs_surface(&opts) {
             check_surface(s, choice, name)?;
         }
     }
-    if let Data::Given(f, g) = &data {
-        let n_of = |s: &Side| match s {
-            Side::Ready(p) => p.n(),
-            Side::Raw(s) => s.n_vertices(),
+    let n_of = |s: &Side| match s {
+        Side::Ready(p) => p.n(),
+        Side::Raw(s) => s.n_vertices(),
+    };
+    // `landmarks=`: a file of pairs (as `funcorr match --landmarks`) or a (k, 2) integer array.
+    let mut opts = opts;
+    if let Some(l) = &landmarks {
+        if opts.method != funcorr::matching::Method::Axiomatic {
+            return Err(value_error(
+                "landmarks",
+                "landmarks act in the default method (method='axiomatic'); for the others give them as data, \
+                 data='landmarks:FILE'",
+            ));
+        }
+        let (n, m) = (n_of(&sx), n_of(&sy));
+        opts.axiomatic.landmarks.pairs = match arrays::path_arg(l) {
+            Some(path) => funcorr::io::indices::read_index_pairs_file(&path, false, n, m).map_err(crate::to_py)?,
+            None => arrays::index_pairs(l, "landmarks", n, m)?,
         };
+    }
+    if let Data::Given(f, g) = &data {
         if f.n() != n_of(&sx) || g.n() != n_of(&sy) {
             return Err(value_error(
                 "data",
@@ -139,26 +163,15 @@ fn match_shapes<'py>(
         let (px, py_) = (px?, py_?);
         funcorr::progress::stage("data")?;
         // As `funcorr match`: a part of Y (detected or partial=True) with the default WKS gets
-        // them at the same energies on both shapes (matching::partial::pair_wks).
-        let partial_wks = |spec: &funcorr::descriptors::spec::PairDataSpec| {
-            opts_run.method == funcorr::matching::Method::Axiomatic
-                && *spec == funcorr::descriptors::spec::PairDataSpec::WksRecipe
-                && funcorr::matching::partial::detect(&px, &py_, &opts_run.partial).partial
-        };
+        // them at the same energies on both shapes.
         let (f, g) = match data {
-            Data::Spec(spec) if partial_wks(&spec) => {
-                // Computed again at the area ratio the pipeline estimates.
-                opts_run.partial.wks = Some(funcorr::descriptors::signatures::WksRecipe::default());
-                funcorr::matching::partial::pair_wks(
-                    &px,
-                    &py_,
-                    &funcorr::descriptors::signatures::WksRecipe::default(),
-                )?
-            }
-            Data::Spec(spec) => spec.functions(px.parts(), py_.parts(), &seg)?,
+            Data::Spec(spec) => match funcorr::matching::partial::partial_pair_data(&px, &py_, &spec, &mut opts_run)? {
+                Some(fg) => fg,
+                None => spec.functions(px.parts(), py_.parts(), &seg)?,
+            },
             Data::Given(f, g) => (f, g),
         };
-        let r = funcorr::matching::run_prepared(&px, &py_, &f, &g, &opts_run)?;
+        let r = funcorr::matching::run(&px, &py_, &f, &g, &opts_run)?;
         Ok((px, py_, f, g, r))
     })?;
     let out = PyDict::new(py);
@@ -236,8 +249,9 @@ fn match_basis_size(data: &Bound<'_, PyAny>, options: Option<&Bound<'_, PyDict>>
         Data::Given(..) => true,
     };
     let mut o = options::Opts::new(options)?;
-    let (_, k, _) = options::match_options(&mut o, rich)?;
-    Ok(k)
+    let settings = options::match_settings(&mut o)?;
+    let opts = settings.resolve(rich).map_err(options::library_error)?;
+    Ok(settings.basis_demand(&opts, &Keywords).map_err(options::library_error)?.size)
 }
 
 /// A functional map argument C (k_Y × k_X, coefficients on X → coefficients on Y).
@@ -573,6 +587,7 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fmap_from_map, m)?)?;
     m.add_function(wrap_pyfunction!(axiomatic_fmap, m)?)?;
     m.add_function(wrap_pyfunction!(match_basis_size, m)?)?;
+    m.add_function(wrap_pyfunction!(options::match_option_keys, m)?)?;
     m.add_function(wrap_pyfunction!(soft_map, m)?)?;
     Ok(())
 }

@@ -108,7 +108,7 @@ def test_match_options_are_checked_before_any_work(mesh_x):
         funcorr.match(X, X, zoomout_step=0)
     with pytest.raises(ValueError, match="kprime: 20 eigenpairs per shape are fewer than the 110"):
         funcorr.match(X, X, kprime=20)
-    with pytest.raises(ValueError, match="w_orientation: must be ≥ 0"):
+    with pytest.raises(ValueError, match="w_orientation: must be finite and ≥ 0"):
         funcorr.match(X, X, w_orientation=-1.0)
     with pytest.raises(ValueError, match="k: expected a non-negative integer"):
         funcorr.match(X, X, method="fmap", k=-3)

@@ -99,24 +99,15 @@ pub fn run_pair(ds: &Dataset, x: &PreparedShape, y: &PreparedShape, opts: &Bench
         .iter()
         .map(|method| {
             let score = || -> Result<PairScore> {
-                // As `funcorr match`: a part of Y (detected, or the method's --partial) with the
-                // default WKS gets them at the same energies on both shapes, computed again at
-                // the area ratio the partial path estimates.
-                let partial = method.options.method == matching::Method::Axiomatic
-                    && opts.data == PairDataSpec::WksRecipe
-                    && matching::partial::detect(&x.prepared, &y.prepared, &method.options.partial).partial;
-                let recipe = crate::descriptors::signatures::WksRecipe::default();
-                let pair =
-                    if partial { Some(matching::partial::pair_wks(&x.prepared, &y.prepared, &recipe)?) } else { None };
+                // As `funcorr match`: a part of Y (detected, or the method's partial option)
+                // with the default WKS gets them at the same energies on both shapes.
                 let mut options = method.options.clone();
+                let pair = matching::partial::partial_pair_data(&x.prepared, &y.prepared, &opts.data, &mut options)?;
                 let (f, g) = match &pair {
-                    Some((fp, gp)) => {
-                        options.partial.wks = Some(recipe);
-                        (fp, gp)
-                    }
+                    Some((fp, gp)) => (fp, gp),
                     None => (&f, &g),
                 };
-                let r = matching::run_prepared(&x.prepared, &y.prepared, f, g, &options)?;
+                let r = matching::run(&x.prepared, &y.prepared, f, g, &options)?;
                 let errors = eval::hard_errors(&r.map_xy, &gt, &*geo, y.mesh().total_area())?;
                 let mut stages = vec![("data".to_string(), data_seconds)];
                 stages.extend(r.stages);

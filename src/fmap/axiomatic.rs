@@ -149,6 +149,30 @@ pub fn axiomatic_sizes(
     opts: &AxiomaticOptions,
     ks: &[usize],
 ) -> Result<Vec<(Mat<f64>, AxiomaticReport)>> {
+    fit_sizes((x, "X"), (y, "Y"), opts, ks)
+}
+
+/// The pull-backs ([`super::Pullback`], C_yx: k × k, functions on Y → functions on X) of a map
+/// X → Y that minimize the axiomatic energy at the sizes `ks` (`opts.k` is ignored): the energy
+/// of the map from Y's data to X's, its first column mapping the constant on Y to the constant
+/// on X (`C_yx e₁ = ±√(area_X / area_Y) e₁`). Errors as [`axiomatic_sizes`], naming X and Y.
+pub fn axiomatic_pullbacks(
+    x: &ShapeData,
+    y: &ShapeData,
+    opts: &AxiomaticOptions,
+    ks: &[usize],
+) -> Result<Vec<(super::Pullback, AxiomaticReport)>> {
+    Ok(fit_sizes((y, "Y"), (x, "X"), opts, ks)?.into_iter().map(|(c, r)| (super::Pullback(c), r)).collect())
+}
+
+/// The fits of [`axiomatic_sizes`] of the map from the functions of `source` to those of
+/// `target`, each side with the name its errors give it.
+fn fit_sizes(
+    (x, x_name): (&ShapeData, &str),
+    (y, y_name): (&ShapeData, &str),
+    opts: &AxiomaticOptions,
+    ks: &[usize],
+) -> Result<Vec<(Mat<f64>, AxiomaticReport)>> {
     use rayon::prelude::*;
     let k = ks.iter().copied().max().ok_or_else(|| Error::invalid("k", "need at least one size"))?;
     if ks.contains(&0) {
@@ -160,11 +184,15 @@ pub fn axiomatic_sizes(
     if x.descriptors.q() != y.descriptors.q() {
         return Err(Error::invalid(
             "data",
-            format!("{} functions on X but {} on Y; they must correspond", x.descriptors.q(), y.descriptors.q()),
+            format!(
+                "{} functions on {x_name} but {} on {y_name}; they must correspond",
+                x.descriptors.q(),
+                y.descriptors.q()
+            ),
         ));
     }
-    let sx = spectral_side(x, k, comm, orient, opts.unit_gradients, "X")?;
-    let sy = spectral_side(y, k, comm, orient, opts.unit_gradients, "Y")?;
+    let sx = spectral_side(x, k, comm, orient, opts.unit_gradients, x_name)?;
+    let sy = spectral_side(y, k, comm, orient, opts.unit_gradients, y_name)?;
     ks.par_iter()
         .map(|&k| {
             crate::progress::check()?;
@@ -213,5 +241,16 @@ mod tests {
         }
         assert!(axiomatic_sizes(&x, &y, &opts, &[]).is_err());
         assert!(axiomatic_sizes(&x, &y, &opts, &[0, 4]).is_err());
+        // The pull-backs of the map X → Y: the energy's map from Y's data to X's, its constant
+        // column ±√(area_X / area_Y); errors name each shape by its own name.
+        let back = axiomatic_pullbacks(&x, &y, &opts, &[8]).unwrap();
+        let (c_yx, _) = &back[0];
+        assert_eq!(c_yx.0, axiomatic(&y, &x, &AxiomaticOptions { k: 8, ..opts }).unwrap().0);
+        let ratio = (basis.mass.iter().sum::<f64>() / basis_y.mass.iter().sum::<f64>()).sqrt();
+        assert!((c_yx.0[(0, 0)].abs() - ratio).abs() < 1e-9 * ratio, "{} {ratio}", c_yx.0[(0, 0)]);
+        let small = eigen_basis(&lap_y, &SpectralOptions::new(6), None).unwrap().0;
+        let y6 = ShapeData { basis: &small, ..y };
+        let e = axiomatic_pullbacks(&x, &y6, &opts, &[8]).unwrap_err().to_string();
+        assert!(e.contains("the basis size of Y"), "{e}");
     }
 }

@@ -29,6 +29,35 @@ pub(crate) use crate::linalg::mul;
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
 
+/// A functional map in the pull-back direction of a point map π: X → Y: C_yx = Φᵀ A_X Π Ψ
+/// (k_X × k_Y) takes the coefficients of a function g on Y (in Ψ) to those of g ∘ π on X (in
+/// Φ) — the transpose direction of the C (k_Y × k_X) of this module's solvers. The axiomatic
+/// pipeline ([`crate::matching::axiomatic`]) estimates π through it from the fit
+/// ([`axiomatic::axiomatic_pullbacks`]) to the last refinement ([`crate::refine`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pullback(pub Mat<f64>);
+
+impl Pullback {
+    /// C_yx (k_X × k_Y).
+    pub fn as_ref(&self) -> MatRef<'_, f64> {
+        self.0.as_ref()
+    }
+    /// k_X, the size of its basis of X (rows).
+    pub fn k_x(&self) -> usize {
+        self.0.nrows()
+    }
+    /// k_Y, the size of its basis of Y (columns).
+    pub fn k_y(&self) -> usize {
+        self.0.ncols()
+    }
+    /// C_yxᵀ (k_Y × k_X), read as the functional map X → Y of this module: equal to the C of
+    /// the same point map when both are orthonormal (a bijective isometry), which ZoomOut's maps
+    /// approach.
+    pub fn transposed(&self) -> Mat<f64> {
+        self.0.transpose().to_owned()
+    }
+}
+
 use crate::descriptors::Descriptors;
 use crate::error::{Error, Result};
 use crate::spectral::Basis;

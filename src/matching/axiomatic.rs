@@ -3,8 +3,8 @@
 //! 1. **Data**: the given descriptors (normalized, [`crate::descriptors::normalized`]) and
 //!    `signed` orientation descriptors built from them ([`crate::descriptors::signed`]), which
 //!    change sign under the left–right symmetry the others cannot see.
-//! 2. **Functional maps**: the exact minimizer of the axiomatic energy
-//!    ([`crate::fmap::axiomatic`]) for the pull-back C_yx of the map X → Y (so that the map is
+//! 2. **Functional maps**: the exact minimizer of the axiomatic energy for the pull-back C_yx
+//!    of the map X → Y ([`crate::fmap::axiomatic::axiomatic_pullbacks`]; so that the map is
 //!    read off in the direction ZoomOut refines it), at several sizes k (`candidates`).
 //! 3. **Selection**: every candidate is refined cheaply (ZoomOut to `probe.k_final` on
 //!    `probe.samples` vertices) and the one whose point map has the smallest metric distortion
@@ -18,8 +18,9 @@
 //!    ([`crate::refine::bijective_polish`]: both point maps and both functional maps, with the
 //!    coupling and bijectivity terms of Ren et al. 2021).
 //!
-//! Map direction: the result is `map_xy` (for every vertex of X a vertex of Y) and its pull-back
-//! C_yx (k × k, functions on Y → functions on X).
+//! Map direction: X → Y throughout. Every functional map of the pipeline, from the fits to the
+//! result, is a pull-back [`Pullback`] (C_yx, k × k, functions on Y → functions on X); the result
+//! is `map_xy` (for every vertex of X a vertex of Y) and its pull-back.
 
 use faer::Mat;
 use rayon::prelude::*;
@@ -27,13 +28,15 @@ use serde::{Deserialize, Serialize};
 
 use crate::descriptors::{self, Descriptors};
 use crate::error::{Error, Result};
-use crate::fmap::axiomatic::{axiomatic_sizes, AxiomaticOptions, ShapeData};
+use crate::fmap::axiomatic::{axiomatic_pullbacks, AxiomaticOptions, ShapeData};
 use crate::fmap::energy::{EnergyWeights, Orientation};
+use crate::fmap::Pullback;
 use crate::geodesic::GraphGeodesics;
 use crate::prepared::PreparedShape;
 use crate::refine::{self, Scope, ZoomOutOptions};
 use crate::spatial::{farthest_point_samples, Samples};
 
+use super::landmarks::{self, LandmarkData, Landmarks};
 use super::search::{self, SampleDistances, SearchOptions};
 
 /// A ZoomOut schedule on vertex samples.
@@ -88,6 +91,10 @@ pub struct AxiomaticPipeline {
     /// samples corrected ([`super::search`]).
     #[serde(default)]
     pub search: SearchOptions,
+    /// Known corresponding points and how strongly they act ([`super::landmarks`]; none by
+    /// default).
+    #[serde(default)]
+    pub landmarks: Landmarks,
 }
 
 /// The searches of the pipeline on large pairs. Above `above_pairs` vertex pairs n · m (with
@@ -133,6 +140,7 @@ impl Default for AxiomaticPipeline {
             polish: 1,
             near: NearSearch::default(),
             search: SearchOptions::default(),
+            landmarks: Landmarks::default(),
         }
     }
 }
@@ -178,6 +186,19 @@ pub struct Candidate {
     /// ([`super::search::seeded_maps`], the partial path): its rank among those maps.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seeded: Option<usize>,
+    /// With landmarks: the mean geodesic distance on Y (unit area) between the images of the
+    /// landmarks of X under its probe's functional map and their given images
+    /// ([`super::landmarks`]; NaN without landmarks).
+    #[serde(skip_serializing_if = "is_nan")]
+    pub landmark_error: f64,
+    /// Whether the candidate was made from the landmarks alone (their trilateration).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub from_landmarks: bool,
+}
+
+/// Whether a score is missing (NaN): not written to the report.
+fn is_nan(v: &f64) -> bool {
+    v.is_nan()
 }
 
 impl Candidate {
@@ -195,6 +216,8 @@ impl Candidate {
             geodesic_corrected_orientation: f64::NAN,
             corrected_from: None,
             seeded: None,
+            landmark_error: f64::NAN,
+            from_landmarks: false,
         }
     }
 }
@@ -204,10 +227,10 @@ impl Candidate {
 pub struct AxiomaticResult {
     /// The point map X → Y (length n).
     pub map_xy: Vec<usize>,
-    /// The pull-back functional map of `map_xy` (final size × final size, Y → X).
-    pub c_yx: Mat<f64>,
-    /// The chosen candidate's functional map before refinement (k × k, Y → X).
-    pub c_fit: Mat<f64>,
+    /// The pull-back functional map of `map_xy` (final size × final size).
+    pub c_yx: Pullback,
+    /// The chosen candidate's pull-back before refinement (k × k).
+    pub c_fit: Pullback,
     /// Every candidate, in the order of the options.
     pub candidates: Vec<Candidate>,
     /// Index of the chosen one.
@@ -310,18 +333,26 @@ pub fn axiomatic_pipeline(
     let t = std::time::Instant::now();
     crate::progress::stage("descriptors")?;
     let (fx, gy) = pipeline_data(x, y, f, g, p)?;
+    // User landmarks: their bumps join the data (module `landmarks`).
+    let lm = LandmarkData::new(x, y, &p.landmarks)?;
+    let (fx, gy) = match &lm {
+        Some(l) => l.functions(x, y, &fx, &gy, &p.landmarks)?,
+        None => (fx, gy),
+    };
+    let pins = lm.as_ref().map_or_else(Vec::new, LandmarkData::pins);
+    let lm_x: Vec<usize> = pins.iter().map(|&(i, _)| i).collect();
     let dx = ShapeData { basis: &x.basis, gradients: x.gradients(), descriptors: &fx };
     let dy = ShapeData { basis: &y.basis, gradients: y.gradients(), descriptors: &gy };
     stages.push(("descriptors".to_string(), t.elapsed().as_secs_f64()));
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
-    // Candidates: C_yx is the map of the energy from Y's data to X's.
+    // Candidates: the pull-backs of the fits.
     let t = std::time::Instant::now();
     crate::progress::stage("functional maps")?;
-    let fits: Vec<Mat<f64>> = axiomatic_sizes(&dy, &dx, &p.fit, &p.candidates)?.into_iter().map(|r| r.0).collect();
+    let fits: Vec<Pullback> = axiomatic_pullbacks(&dx, &dy, &p.fit, &p.candidates)?.into_iter().map(|r| r.0).collect();
     stages.push(("functional maps".to_string(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
     crate::progress::stage("search samples")?;
-    let probe_samples = samples_of(x, p.probe.samples)?;
+    let probe_samples = landmarks::with_landmarks(samples_of(x, p.probe.samples)?, &lm_x, p.landmarks.pin_weight);
     // Large pairs: every search restricted to samples or near the samples' map (NearSearch).
     let near_positions = match (x.positions(), y.positions()) {
         (Some(px), Some(py))
@@ -383,6 +414,8 @@ pub fn axiomatic_pipeline(
         search: &search,
         scale,
         data: (&fx, &gy),
+        landmarks: lm.as_ref(),
+        pins: &pins,
     };
     // The candidates are probed independently, in parallel.
     let mut probed: Vec<Probe> = fits
@@ -403,7 +436,7 @@ pub fn axiomatic_pipeline(
     let t = std::time::Instant::now();
     crate::progress::stage("correction")?;
     let mut correction = None;
-    let mut starts: Vec<Mat<f64>> = fits;
+    let mut starts: Vec<Pullback> = fits;
     if let Some(s) = &search {
         let originals = probed.len();
         // The hybrid sample map of each form (cheap), then their probes, in parallel.
@@ -444,16 +477,28 @@ pub fn axiomatic_pipeline(
             }
         }
         let k0 = p.candidates.iter().copied().min().unwrap_or(1).min(s.x.len() / 4).max(1);
-        let extra: Vec<(Probe, Mat<f64>)> = hybrids
+        let extra: Vec<(Probe, Pullback)> = hybrids
             .par_iter()
             .map(|(from, joint, hybrid)| {
-                let c0 = refine::pullback(phi, psi, &s.x.samples, hybrid, k0, k0)?;
+                let c0 = Pullback(refine::pullback(phi, psi, &s.x.samples, hybrid, k0, k0)?);
                 let mut q = ctx.probe(&c0, k0, false)?;
                 q.candidate.corrected_from = Some((*from, *joint));
                 Ok((q, c0))
             })
             .collect::<Result<_>>()?;
         for (q, c0) in extra {
+            probed.push(q);
+            starts.push(c0);
+        }
+        // With landmarks, one more candidate from the landmarks alone: the samples trilaterated
+        // from their distances to the landmarks, corrected with that as the data term.
+        if let Some(l) = &lm {
+            let costs = l.trilateration_costs(&s.x, &s.y);
+            let start = l.trilaterate(&costs, &s.y);
+            let (fixed, _) = search::correct(&s.x, &s.y, &start, Some(&costs), p.search.rounds)?;
+            let c0 = Pullback(refine::pullback(phi, psi, &s.x.samples, &fixed, k0, k0)?);
+            let mut q = ctx.probe(&c0, k0, false)?;
+            q.candidate.from_landmarks = true;
             probed.push(q);
             starts.push(c0);
         }
@@ -468,10 +513,20 @@ pub fn axiomatic_pipeline(
         v.get(v.len() / 2).copied().unwrap_or(1.0)
     };
     let (me, md) = (median(&|c| c.distortion), median(&|c| c.data_misfit));
-    let chosen = if search.is_some() {
-        choose(&candidates, p.fit.orientation, |c| c.distortion / me + c.data_misfit / md)
-    } else {
-        choose(&candidates, p.fit.orientation, |c| c.distortion)
+    let chosen = match (search.is_some(), lm.is_some()) {
+        (true, false) => choose(&candidates, p.fit.orientation, |c| c.distortion / me + c.data_misfit / md),
+        (false, false) => choose(&candidates, p.fit.orientation, |c| c.distortion),
+        // With landmarks, their error in units of the tolerance joins the score; and when no
+        // candidate of the asked orientation respects them (an error within one tolerance of the
+        // lowest), they, not that orientation, tell a map from its mirror image.
+        (_, true) => {
+            let tol = p.landmarks.tolerance;
+            let best = candidates.iter().map(|c| c.landmark_error).fold(f64::INFINITY, f64::min);
+            let respected = candidates.iter().any(|c| agrees(c, p.fit.orientation) && c.landmark_error <= best + tol);
+            let orientation = if respected { p.fit.orientation } else { Orientation::Ignore };
+            let misfit = |c: &Candidate| if search.is_some() { c.data_misfit / md } else { 0.0 };
+            choose(&candidates, orientation, |c| c.distortion / me + misfit(c) + c.landmark_error / tol)
+        }
     };
     stages.push(("correction".to_string(), t.elapsed().as_secs_f64()));
     let c_fit = starts.swap_remove(chosen);
@@ -480,7 +535,7 @@ pub fn axiomatic_pipeline(
         (true, Some(c)) => c,
         _ => c_fit.clone(),
     };
-    let (c_yx, map_xy, near_samples) = refine_from(x, y, c_start, &c_fit, p, &near_positions, &mut stages)?;
+    let (c_yx, map_xy, near_samples) = refine_from(x, y, c_start, &c_fit, p, &near_positions, &pins, &mut stages)?;
     Ok(AxiomaticResult { map_xy, c_yx, c_fit, candidates, chosen, stages, near_samples, correction })
 }
 
@@ -498,13 +553,16 @@ struct ProbeContext<'a> {
     scale: f64,
     /// The fits' data F (n × q), G (m × q).
     data: (&'a Descriptors, &'a Descriptors),
+    /// The user's landmarks (module `landmarks`), pinned in the probes' ZoomOut.
+    landmarks: Option<&'a LandmarkData>,
+    pins: &'a [(usize, usize)],
 }
 
 impl ProbeContext<'_> {
-    /// ZoomOut from the start `c` (C_yx, k × k) to the probe size on the probe samples, the map
+    /// ZoomOut from the start `c` (k × k) to the probe size on the probe samples, the map
     /// where it is scored, its orientation and distortion (geodesic on the search samples, or of
     /// the edges), and with `correct` the correction of its search samples.
-    fn probe(&self, c: &Mat<f64>, k: usize, correct: bool) -> Result<Probe> {
+    fn probe(&self, c: &Pullback, k: usize, correct: bool) -> Result<Probe> {
         let (x, y, p) = (self.x, self.y, self.p);
         let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
         let (tx, py, ny) = (x.triangles(), y.positions(), y.normals());
@@ -513,7 +571,7 @@ impl ProbeContext<'_> {
             (Some(near), Some(sy)) => {
                 let (xs, ys) = (&self.probe_samples.vertices, &sy.vertices);
                 let scope = Scope::Near { near, x_cells: xs, y_cells: ys };
-                let c = refine::zoomout(phi, psi, self.probe_samples, c.as_ref(), &o, scope)?;
+                let c = refine::zoomout_pinned(phi, psi, self.probe_samples, c.as_ref(), &o, scope, self.pins)?;
                 let map = match self.patch {
                     // The images of the patch; other entries stay 0 (unread).
                     Some(patch) => {
@@ -525,7 +583,7 @@ impl ProbeContext<'_> {
                 (c, map)
             }
             _ => {
-                let c = refine::zoomout(phi, psi, self.probe_samples, c.as_ref(), &o, Scope::Exact)?;
+                let c = refine::zoomout_pinned(phi, psi, self.probe_samples, c.as_ref(), &o, Scope::Exact, self.pins)?;
                 let map = match self.patch {
                     Some(patch) => spread(
                         phi.nrows(),
@@ -538,6 +596,10 @@ impl ProbeContext<'_> {
             }
         };
         let mut candidate = Candidate::unscored(k);
+        if let Some(l) = self.landmarks {
+            let images = refine::map_of_pullback(phi, psi, c.as_ref(), Some(&l.xs), Scope::Exact)?;
+            candidate.landmark_error = l.error(&images);
+        }
         candidate.orientation = match (tx, py, ny) {
             (Some(tx), Some(py), Some(ny)) if self.patch.is_some() => {
                 refine::orientation_agreement_around(tx, py, ny, &map, self.centres)?
@@ -592,7 +654,7 @@ impl ProbeContext<'_> {
                 }
             }
         }
-        Ok(Probe { candidate, c: Some(c), images, corrected })
+        Ok(Probe { candidate, c: Some(Pullback(c)), images, corrected })
     }
 }
 
@@ -613,7 +675,7 @@ const ORIENTATION_NEIGHBOURS: usize = 8;
 /// of the search samples and their correction.
 struct Probe {
     candidate: Candidate,
-    c: Option<Mat<f64>>,
+    c: Option<Pullback>,
     images: Option<Vec<usize>>,
     /// The corrections by distances and data, and by distances alone.
     corrected: [Option<(Vec<usize>, search::Correction)>; 2],
@@ -626,15 +688,21 @@ fn spread(n: usize, rows: &[usize], images: &[usize]) -> Vec<usize> {
     map
 }
 
+/// Whether a candidate's orientation agrees with the asked one (≥ 0 for preserving maps, ≤ 0 for
+/// reversing ones; NaN and `Ignore` always).
+fn agrees(c: &Candidate, orientation: Orientation) -> bool {
+    match orientation {
+        Orientation::Preserve => c.orientation >= 0.0 || c.orientation.is_nan(),
+        Orientation::Reverse => c.orientation <= 0.0 || c.orientation.is_nan(),
+        Orientation::Ignore => true,
+    }
+}
+
 /// The candidate with the smallest `score` among those whose orientation agrees with the asked
 /// one (orientation ≥ 0 for preserving maps, ≤ 0 for reversing ones; all when none does or
 /// orientation is ignored); the first candidate when no score could be measured (NaN).
 pub(super) fn choose(candidates: &[Candidate], orientation: Orientation, score: impl Fn(&Candidate) -> f64) -> usize {
-    let agrees = |c: &Candidate| match orientation {
-        Orientation::Preserve => c.orientation >= 0.0 || c.orientation.is_nan(),
-        Orientation::Reverse => c.orientation <= 0.0 || c.orientation.is_nan(),
-        Orientation::Ignore => true,
-    };
+    let agrees = |c: &Candidate| agrees(c, orientation);
     let any = candidates.iter().any(agrees);
     (0..candidates.len())
         .filter(|&a| !any || agrees(&candidates[a]))
@@ -650,76 +718,92 @@ pub(super) fn choose(candidates: &[Candidate], orientation: Orientation, score: 
         .unwrap_or(0)
 }
 
-/// The final refinement from `c_start` (C_yx): ZoomOut (or its bijective variant) to
-/// `p.refine.k_final`, then the polish. Returns (C_yx, map_xy, the samples of the restricted
-/// final searches) and appends its stage times.
-#[allow(clippy::type_complexity)]
+/// The final refinement from the pull-back `c_start`: ZoomOut (or its bijective variant) to
+/// `p.refine.k_final`, then the polish. Returns (the final pull-back, map_xy, the samples of the
+/// restricted final searches) and appends its stage times.
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
 fn refine_from(
     x: &PreparedShape,
     y: &PreparedShape,
-    c_start: Mat<f64>,
-    c_fit: &Mat<f64>,
+    c_start: Pullback,
+    c_fit: &Pullback,
     p: &AxiomaticPipeline,
     near_positions: &Option<refine::Near>,
+    pins: &[(usize, usize)],
     stages: &mut Vec<(String, f64)>,
-) -> Result<(Mat<f64>, Vec<usize>, Option<(Samples, Samples)>)> {
+) -> Result<(Pullback, Vec<usize>, Option<(Samples, Samples)>)> {
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
     let t = std::time::Instant::now();
     crate::progress::stage("zoomout")?;
+    // Landmarks (module `landmarks`) are samples of both shapes, pinned in every point map.
+    let (lm_x, lm_y): (Vec<usize>, Vec<usize>) = pins.iter().copied().unzip();
+    let pin = |mut map: Vec<usize>| {
+        for &(i, j) in pins {
+            map[i] = j;
+        }
+        map
+    };
     if p.refine.k_final == 0 {
-        let unrefined = (c_fit.clone(), refine::map_of_pullback(phi, psi, c_fit.as_ref(), None, Scope::Exact)?, None);
+        let map = pin(refine::map_of_pullback(phi, psi, c_fit.as_ref(), None, Scope::Exact)?);
+        let unrefined = (c_fit.clone(), map, None);
         stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
         return Ok(unrefined);
     }
     // Samples computed once for ZoomOut (or its bijective variant) and the polish.
-    let sx = samples_of(x, p.refine.samples)?;
-    let sy = if p.bijective > 0.0 || p.polish > 0 { Some(samples_of(y, p.refine.samples)?) } else { None };
+    let pw = p.landmarks.pin_weight;
+    let sx = landmarks::with_landmarks(samples_of(x, p.refine.samples)?, &lm_x, pw);
+    let sy = if p.bijective > 0.0 || p.polish > 0 {
+        Some(landmarks::with_landmarks(samples_of(y, p.refine.samples)?, &lm_y, pw))
+    } else {
+        None
+    };
     let (c, map) = match &sy {
         Some(sy) if p.bijective > 0.0 => {
             let o = refine::BijectiveOptions {
-                k_final: p.refine.k_final.max(c_start.nrows()),
+                k_final: p.refine.k_final.max(c_start.k_x()),
                 step: p.refine.step,
                 bijectivity: p.bijective,
             };
-            let c_xy0 = c_start.transpose().to_owned();
+            // The start of the pull-back of the inverse map: C_yxᵀ (orthonormal maps).
+            let c_xy0 = c_start.transposed();
             let (c, m, _) = refine::bijective_zoomout(phi, psi, &sx, sy, c_start.as_ref(), c_xy0.as_ref(), &o)?;
-            (c, Some(m))
+            (c, Some(pin(m)))
         }
         _ => {
-            let o = ZoomOutOptions { k_final: p.refine.k_final.max(c_start.nrows()), step: p.refine.step };
+            let o = ZoomOutOptions { k_final: p.refine.k_final.max(c_start.k_x()), step: p.refine.step };
             if p.polish > 0 {
                 // The polish reads the point map off itself.
                 let scope = match (near_positions, &sy) {
                     (Some(near), Some(sy)) => Scope::Near { near, x_cells: &sx.vertices, y_cells: &sy.vertices },
                     _ => Scope::Exact,
                 };
-                let c = refine::zoomout(phi, psi, &sx, c_start.as_ref(), &o, scope)?;
+                let c = refine::zoomout_pinned(phi, psi, &sx, c_start.as_ref(), &o, scope, pins)?;
                 (c, None)
             } else {
-                let c = refine::zoomout(phi, psi, &sx, c_start.as_ref(), &o, Scope::Exact)?;
-                let m = refine::map_of_pullback(phi, psi, c.as_ref(), None, Scope::Exact)?;
+                let c = refine::zoomout_pinned(phi, psi, &sx, c_start.as_ref(), &o, Scope::Exact, pins)?;
+                let m = pin(refine::map_of_pullback(phi, psi, c.as_ref(), None, Scope::Exact)?);
                 (c, Some(m))
             }
         }
     };
     stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
     match map {
-        Some(m) if p.polish == 0 => Ok((c, m, None)),
+        Some(m) if p.polish == 0 => Ok((Pullback(c), m, None)),
         _ => {
             let t = std::time::Instant::now();
             crate::progress::stage("polish")?;
             let sy = match sy {
                 Some(sy) => sy,
-                None => samples_of(y, p.refine.samples)?,
+                None => landmarks::with_landmarks(samples_of(y, p.refine.samples)?, &lm_y, pw),
             };
             let near = near_positions.as_ref().filter(|_| p.refine.samples > 0);
             let scope = match near {
                 Some(near) => Scope::Near { near, x_cells: &sx.vertices, y_cells: &sy.vertices },
                 None => Scope::Exact,
             };
-            let (c, map) = refine::bijective_polish(phi, psi, &sx, &sy, c.as_ref(), p.polish, scope)?;
+            let (c, map) = refine::bijective_polish_pinned(phi, psi, &sx, &sy, c.as_ref(), p.polish, scope, pins)?;
             stages.push(("polish".to_string(), t.elapsed().as_secs_f64()));
-            Ok((c, map, near.map(|_| (sx, sy))))
+            Ok((Pullback(c), map, near.map(|_| (sx, sy))))
         }
     }
 }
@@ -816,7 +900,7 @@ mod tests {
     /// vertices and recover the true map.
     #[test]
     fn restricted_searches_agree_with_the_exact_ones() {
-        use crate::matching::{run_prepared, MatchOptions, Method};
+        use crate::matching::{run, MatchOptions, Method};
         let (x, y, truth, _) = pair();
         let r = WksRecipe::default();
         let (f, g) = (wks_recipe(&x.basis, &r).unwrap(), wks_recipe(&y.basis, &r).unwrap());
@@ -825,7 +909,7 @@ mod tests {
         p.refine.samples = 200;
         let run = |p: &AxiomaticPipeline| {
             let o = MatchOptions { method: Method::Axiomatic, axiomatic: p.clone(), ..MatchOptions::default() };
-            run_prepared(&x, &y, &f, &g, &o).unwrap()
+            run(&x, &y, &f, &g, &o).unwrap()
         };
         let exact = run(&p);
         p.near = NearSearch { above_pairs: 0, cells: 8 };
@@ -846,7 +930,7 @@ mod tests {
     #[test]
     fn the_completion_prior_tells_the_map_from_its_mirror_image() {
         use crate::completion::{CompletionOptions, Scaling};
-        use crate::matching::{run_prepared, Extraction, MatchOptions, Method, Refine};
+        use crate::matching::{run, Extraction, MatchOptions, Method, Refine};
         let (x, y, truth, mirrored) = pair();
         let r = WksRecipe::default();
         let (f, g) = (wks_recipe(&x.basis, &r).unwrap(), wks_recipe(&y.basis, &r).unwrap());
@@ -866,7 +950,7 @@ mod tests {
             axiomatic: AxiomaticPipeline { fit: AxiomaticOptions { orientation, ..p.fit }, ..p.clone() },
             ..MatchOptions::default()
         };
-        let res = run_prepared(&x, &y, &fx, &gy, &opts(Orientation::Preserve)).unwrap();
+        let res = run(&x, &y, &fx, &gy, &opts(Orientation::Preserve)).unwrap();
         let Some(crate::matching::SolverReport::Completion(report)) = &res.solver else {
             panic!("no completion report")
         };
@@ -874,13 +958,13 @@ mod tests {
         assert!(prior > 0.0, "the prior is part of the objective: {:?}", report.terms());
         let (good, bad) = (agreement(&res.map_xy, &truth), agreement(&res.map_xy, &mirrored));
         assert!(good > 0.5 && bad < 0.1, "preserve: recovered {good} of the true map, {bad} of its mirror image");
-        let res = run_prepared(&x, &y, &fx, &gy, &opts(Orientation::Reverse)).unwrap();
+        let res = run(&x, &y, &fx, &gy, &opts(Orientation::Reverse)).unwrap();
         let (good, bad) = (agreement(&res.map_xy, &truth), agreement(&res.map_xy, &mirrored));
         assert!(bad > 0.5 && good < 0.1, "reverse: recovered {bad} of the mirror image, {good} of the true map");
         // Without its energy, or in a vertex form, the weight is an error.
         let mut o = opts(Orientation::Preserve);
         o.completion.form = crate::completion::Form::LowNorm;
-        assert!(run_prepared(&x, &y, &fx, &gy, &o).is_err());
+        assert!(run(&x, &y, &fx, &gy, &o).is_err());
     }
 
     #[test]

@@ -1,10 +1,23 @@
 //! The matching pipeline: data F, G on two shapes → a functional map by one of the methods →
-//! a point-to-point map X → Y, refined or not. The CLI's `match`, `demo` and the experiment
-//! programs are thin layers over [`run`].
+//! a point-to-point map X → Y, refined or not. The CLI's `match`, `demo`, the Python
+//! `funcorr.match` and the experiment programs are thin layers over [`run`], with options
+//! named as in [`options`] ([`MatchSettings`] → [`MatchOptions`]).
+//!
+//! **Direction.** Every method maps X (n vertices, basis Φ) to Y (m vertices, basis Ψ): the
+//! point map `map_xy` gives for every vertex of X a vertex of Y, the completion method's T is
+//! m × n, and the functional map C of [`MatchResult`] is k_Y × k_X (coefficients on X →
+//! coefficients on Y, as in [`crate::fmap`]). The axiomatic method estimates the map through its
+//! pull-back ([`crate::fmap::Pullback`], C_yx: k_X × k_Y, functions on Y → functions on X),
+//! which is the type of its every intermediate; its result's C is the transpose of the final
+//! pull-back ([`crate::fmap::Pullback::transposed`]).
 
 pub mod axiomatic;
+pub mod landmarks;
+pub mod options;
 pub mod partial;
 pub mod search;
+
+pub use options::{BasisDemand, Keywords, MatchSettings, Spelling, Value, MATCH_OPTIONS};
 
 use std::time::Instant;
 
@@ -61,7 +74,10 @@ pub enum Extraction {
     Fmap,
 }
 
-/// Everything [`run`] needs besides the shapes and data.
+/// Everything [`run`] needs besides the shapes and data: build it with
+/// [`MatchOptions::default`] (what `funcorr match X Y` runs) or [`MatchOptions::for_method`], change
+/// fields, check it with [`MatchOptions::validate`]; or from options by name,
+/// [`MatchSettings::resolve`].
 #[derive(Clone, Debug, Serialize)]
 pub struct MatchOptions {
     /// The method.
@@ -283,6 +299,8 @@ pub struct MatchReport<'a> {
     pub correction: Option<&'a search::Correction>,
     /// The axiomatic method's partial detection: whether X was matched as a part of Y, and why.
     pub partial: Option<&'a partial::Detection>,
+    /// Number of user landmarks the run used ([`landmarks`]; 0: none).
+    pub landmarks: usize,
     /// The stages in order.
     pub stages: Vec<StageTime<'a>>,
 }
@@ -340,6 +358,7 @@ impl MatchResult {
             candidates: self.candidates.as_ref().map(|(c, i)| CandidateChoice { candidates: c, chosen: *i }),
             correction: self.correction.as_ref(),
             partial: self.partial.as_ref(),
+            landmarks: if opts.method == Method::Axiomatic { opts.axiomatic.landmarks.pairs.len() } else { 0 },
             stages: self.stages.iter().map(|(s, t)| StageTime { stage: s, seconds: *t }).collect(),
         }
     }
@@ -358,10 +377,12 @@ fn timed<T>(stages: &mut Vec<(String, f64)>, name: &str, f: impl FnOnce() -> Res
 }
 
 /// Runs the method of `opts` on bases `bx` (X, n vertices), `by` (Y, m) and data F (n × q), G
-/// (m × q), then the refinement. The vertex forms of the completion method also need the
-/// Laplacians. Errors: bases smaller than [`MatchOptions::basis_size`], and those of the methods.
+/// (m × q), then the refinement: every method but the axiomatic one, which needs the shapes'
+/// surfaces ([`run`]). The vertex forms of the completion method also need the Laplacians.
+/// Errors: options that [`MatchOptions::validate`] rejects, the axiomatic method, bases smaller
+/// than [`MatchOptions::basis_size`], and those of the methods.
 #[allow(clippy::too_many_arguments)]
-pub fn run(
+pub fn run_on_bases(
     bx: &Basis,
     by: &Basis,
     laplacians: Option<(&Laplacian, &Laplacian)>,
@@ -419,6 +440,7 @@ fn run_with_gradients(
     g: &Descriptors,
     opts: &MatchOptions,
 ) -> Result<MatchResult> {
+    opts.validate()?;
     let need = opts.basis_size();
     if bx.k() < need || by.k() < need {
         return Err(Error::invalid(
@@ -434,7 +456,7 @@ fn run_with_gradients(
     // The method: a functional map and, for completion, a point map of its own.
     let (c_method, method_maps): (Mat<f64>, Option<MapPair>) = match opts.method {
         Method::Axiomatic => {
-            return Err(Error::invalid("method", "the axiomatic method needs prepared shapes (run_prepared)"));
+            return Err(Error::invalid("method", "the axiomatic method needs prepared shapes (matching::run)"));
         }
         Method::Fmap => (timed(&mut stages, "functional map", || fmap::ovsjanikov(bx, by, f, g, opts.k, &ovs))?, None),
         Method::Pokrass => {
@@ -519,22 +541,50 @@ fn run_with_gradients(
     })
 }
 
-/// [`run`] on prepared shapes: the axiomatic method, which needs their surfaces, and every other
-/// method through [`run`] with their bases and Laplacians. For the axiomatic method `c` is the
+/// The whole pipeline on prepared shapes X and Y with data F (n × q) on X and G (m × q) on Y:
+/// every method (the axiomatic one reads the shapes' surfaces; the others run as
+/// [`run_on_bases`] with their bases and Laplacians). For the axiomatic method `c` is the
 /// transpose of the pull-back C_yx of `map_xy` (k × k; for a bijective isometry the two agree),
-/// `c_method` the chosen candidate's fit, transposed the same way.
-pub fn run_prepared(
+/// `c_method` the chosen candidate's fit, transposed the same way, and `map_yx` the point map
+/// Y → X read off the same pull-back ([`crate::refine::map_yx_of_pullback`]). Errors: options
+/// that [`MatchOptions::validate`] rejects, and those of the method.
+///
+/// ```no_run
+/// use funcorr::descriptors::spec::PairDataSpec;
+/// use funcorr::matching::{self, MatchOptions};
+/// use funcorr::prepared::{LaplacianChoice, PreparedShape};
+/// use funcorr::shape::Shape;
+/// # fn main() -> funcorr::Result<()> {
+/// let prepare = |p: &str| PreparedShape::new(Shape::load(std::path::Path::new(p))?, LaplacianChoice::Auto, 200, None);
+/// let (x, y) = (prepare("data/faust/tr_reg_000.off")?, prepare("data/faust/tr_reg_001.off")?);
+/// let (f, g) = "wks".parse::<PairDataSpec>()?.functions(x.parts(), y.parts(), &Default::default())?;
+/// let mut opts = MatchOptions::default(); // what `funcorr match X Y` runs
+/// opts.axiomatic.polish = 0;
+/// opts.validate()?;
+/// let r = matching::run(&x, &y, &f, &g, &opts)?;
+/// assert_eq!(r.map_xy.len(), x.n()); // for every vertex of X a vertex of Y
+/// # Ok(()) }
+/// ```
+pub fn run(
     x: &crate::prepared::PreparedShape,
     y: &crate::prepared::PreparedShape,
     f: &Descriptors,
     g: &Descriptors,
     opts: &MatchOptions,
 ) -> Result<MatchResult> {
+    opts.validate()?;
     if opts.method != Method::Axiomatic {
         if opts.partial.mode == partial::PartialMode::Always {
             return Err(Error::invalid(
                 "partial",
                 "partial matching is a path of the axiomatic method (the default); other methods match whole shapes",
+            ));
+        }
+        if !opts.axiomatic.landmarks.is_empty() {
+            return Err(Error::invalid(
+                "landmarks",
+                "landmarks act in the default (axiomatic) method only; for the other methods give them as data \
+                 (landmarks:pairs.txt)",
             ));
         }
         let orient = opts.method == Method::Completion
@@ -556,21 +606,25 @@ pub fn run_prepared(
     }
     let r = axiomatic::axiomatic_pipeline(x, y, f, g, &opts.axiomatic)?;
     let mut stages = r.stages;
-    let c = r.c_yx.transpose().to_owned();
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
-    let map_yx = timed(&mut stages, "map Y → X", || match (&r.near_samples, x.positions(), y.positions()) {
+    // The map Y → X from the final pull-back, searched as the final map X → Y was.
+    let mut map_yx = timed(&mut stages, "map Y → X", || match (&r.near_samples, x.positions(), y.positions()) {
         (Some((sx, sy)), Some(px), Some(py)) => {
-            let near = crate::refine::Near { x: py, y: px, cells: opts.axiomatic.near.cells };
-            let scope = crate::refine::Scope::Near { near: &near, x_cells: &sy.vertices, y_cells: &sx.vertices };
-            crate::refine::map_of_pullback(psi, phi, c.as_ref(), None, scope)
+            let near = crate::refine::Near { x: px, y: py, cells: opts.axiomatic.near.cells };
+            let scope = crate::refine::Scope::Near { near: &near, x_cells: &sx.vertices, y_cells: &sy.vertices };
+            crate::refine::map_yx_of_pullback(phi, psi, r.c_yx.as_ref(), scope)
         }
-        _ => crate::refine::map_of_pullback(psi, phi, c.as_ref(), None, crate::refine::Scope::Exact),
+        _ => crate::refine::map_yx_of_pullback(phi, psi, r.c_yx.as_ref(), crate::refine::Scope::Exact),
     })?;
+    // The landmarks' images are pinned in the map back too (module `landmarks`).
+    for &(i, j) in &opts.axiomatic.landmarks.pairs {
+        map_yx[j] = i;
+    }
     let r = MatchResult {
         map_xy: r.map_xy,
         map_yx,
-        c,
-        c_method: r.c_fit.transpose().to_owned(),
+        c: r.c_yx.transposed(),
+        c_method: r.c_fit.transposed(),
         coefficients: None,
         factors: None,
         solver: None,
@@ -595,6 +649,16 @@ fn run_partial(
     opts: &MatchOptions,
     mut detection: partial::Detection,
 ) -> Result<MatchResult> {
+    if !opts.axiomatic.landmarks.is_empty() {
+        return Err(Error::invalid(
+            "landmarks",
+            format!(
+                "the partial path does not use landmarks (X was taken for a part of Y: {}); set partial to false \
+                 to match the shapes as whole ones with the landmarks",
+                detection.reason
+            ),
+        ));
+    }
     let r = partial::partial_pipeline(x, y, f, g, &opts.axiomatic, &opts.partial)?;
     detection.used_ratio = Some(r.area_ratio);
     let mut stages = r.stages;

@@ -55,6 +55,7 @@ use serde::{Deserialize, Serialize};
 use super::axiomatic::{choose, samples_of, AxiomaticPipeline, Candidate};
 use super::search::{self, SampleDistances};
 use crate::descriptors::signatures::{WksRecipe, WKS_VARIANCE};
+use crate::descriptors::spec::PairDataSpec;
 use crate::descriptors::{self, Descriptors};
 use crate::error::{Error, Result};
 use crate::fmap::axiomatic::{constant_column, spectral_side, ShapeData};
@@ -192,6 +193,29 @@ pub fn detect(x: &PreparedShape, y: &PreparedShape, opts: &PartialOptions) -> De
 /// F: n × q, G: m × q. Errors: fewer than two non-zero eigenvalues, a bad recipe.
 pub fn pair_wks(x: &PreparedShape, y: &PreparedShape, recipe: &WksRecipe) -> Result<(Descriptors, Descriptors)> {
     pair_wks_at(x, y, recipe, x.area / y.area)
+}
+
+/// The data functions of a pair that the partial path needs instead of `spec`'s: for the
+/// axiomatic method with the default WKS recipe (`spec` [`PairDataSpec::WksRecipe`]) on a pair
+/// whose X is a part of Y ([`detect`] under `opts.partial`), the WKS at the same energies on
+/// both shapes ([`pair_wks`], F n × q and G m × q), and `opts.partial.wks` set so that the
+/// pipeline computes them again at an estimated area ratio. None otherwise: the pair's data are
+/// `spec`'s as for whole shapes. The one place the front ends (CLI, Python, benchmark) ask.
+pub fn partial_pair_data(
+    x: &PreparedShape,
+    y: &PreparedShape,
+    spec: &PairDataSpec,
+    opts: &mut super::MatchOptions,
+) -> Result<Option<(Descriptors, Descriptors)>> {
+    if opts.method != super::Method::Axiomatic
+        || *spec != PairDataSpec::WksRecipe
+        || !detect(x, y, &opts.partial).partial
+    {
+        return Ok(None);
+    }
+    let recipe = WksRecipe::default();
+    opts.partial.wks = Some(recipe);
+    pair_wks(x, y, &recipe).map(Some)
 }
 
 /// [`pair_wks`] with the area ratio r of X (in Y's units) to Y given: X's eigenvalues are taken

@@ -149,6 +149,37 @@ fn bijective_map_near(
     nearest_neighbors_near(reference.as_ref(), query.as_ref(), &coarse, near.cells)
 }
 
+/// Pins ([`bijective_polish_pinned`]) as positions in the samples of both shapes: (position in
+/// the samples of X, vertex of Y) and (position in the samples of Y, vertex of X).
+#[derive(Default)]
+struct PinnedSamples {
+    xy: Vec<(usize, usize)>,
+    yx: Vec<(usize, usize)>,
+}
+
+impl PinnedSamples {
+    /// The positions of the pins (i on X, j on Y): i among the samples `sx`, and j, when it is one
+    /// of the samples `sy`, pinned to i in the map Y → X. Errors for an i that is not a sample of
+    /// X, and for vertex ids out of range.
+    fn new(sx: &Samples, sy: &Samples, pins: &[(usize, usize)], n: usize, m: usize) -> Result<PinnedSamples> {
+        let xy = super::zoomout::pin_positions(sx, pins, m)?;
+        if let Some(&(i, _)) = pins.iter().find(|&&(i, _)| i >= n) {
+            return Err(Error::invalid("pins", format!("vertex {i} of X is out of range (n = {n})")));
+        }
+        let yx = pins.iter().filter_map(|&(i, j)| sy.vertices.iter().position(|&v| v == j).map(|t| (t, i))).collect();
+        Ok(PinnedSamples { xy, yx })
+    }
+
+    fn apply(&self, map_xy: &mut [usize], map_yx: &mut [usize]) {
+        for &(s, j) in &self.xy {
+            map_xy[s] = j;
+        }
+        for &(t, i) in &self.yx {
+            map_yx[t] = i;
+        }
+    }
+}
+
 /// One round of the bijective refinement: both point maps on the samples of their shape (each
 /// against every vertex of the other shape, or with `sampled_references` against its samples
 /// only), then both functional maps at size `k`. Returns (C_yx, C_xy).
@@ -162,10 +193,12 @@ fn bijective_round(
     k: usize,
     w: f64,
     sampled_references: bool,
+    pinned: &PinnedSamples,
 ) -> Result<(Mat<f64>, Mat<f64>)> {
     let (ry, rx) = if sampled_references { (Some(&sy.vertices[..]), Some(&sx.vertices[..])) } else { (None, None) };
-    let map_xy = bijective_map(phi, psi, c_yx, c_xy, w, Some(&sx.vertices), ry)?;
-    let map_yx = bijective_map(psi, phi, c_xy, c_yx, w, Some(&sy.vertices), rx)?;
+    let mut map_xy = bijective_map(phi, psi, c_yx, c_xy, w, Some(&sx.vertices), ry)?;
+    let mut map_yx = bijective_map(psi, phi, c_xy, c_yx, w, Some(&sy.vertices), rx)?;
+    pinned.apply(&mut map_xy, &mut map_yx);
     Ok((
         bijective_fmap(phi, psi, sx, &map_xy, sy, &map_yx, k, w)?,
         bijective_fmap(psi, phi, sy, &map_yx, sx, &map_xy, k, w)?,
@@ -211,7 +244,8 @@ pub fn bijective_zoomout(
     let mut k = k0;
     while k < kf {
         k = (k + opts.step).min(kf);
-        (c_yx, c_xy) = bijective_round(phi, psi, sx, sy, (c_yx.as_ref(), c_xy.as_ref()), k, w, false)?;
+        (c_yx, c_xy) =
+            bijective_round(phi, psi, sx, sy, (c_yx.as_ref(), c_xy.as_ref()), k, w, false, &PinnedSamples::default())?;
     }
     let map_xy = bijective_map(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, None, None)?;
     let map_yx = bijective_map(psi, phi, c_xy.as_ref(), c_yx.as_ref(), w, None, None)?;
@@ -242,6 +276,24 @@ pub fn bijective_polish(
     rounds: usize,
     scope: Scope,
 ) -> Result<(Mat<f64>, Vec<usize>)> {
+    bijective_polish_pinned(phi, psi, sx, sy, c_yx, rounds, scope, &[])
+}
+
+/// [`bijective_polish`] with known point pairs held fixed: for every `(i, j)` of `pins` (vertex
+/// i of X, which must be one of the samples `sx`, and vertex j of Y) the map X → Y sends i to j
+/// in every round and in the final map of every vertex, and the map Y → X sends j back to i in
+/// every round where j is one of the samples `sy`. No pins: exactly [`bijective_polish`].
+#[allow(clippy::too_many_arguments)]
+pub fn bijective_polish_pinned(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    sx: &Samples,
+    sy: &Samples,
+    c_yx: MatRef<f64>,
+    rounds: usize,
+    scope: Scope,
+    pins: &[(usize, usize)],
+) -> Result<(Mat<f64>, Vec<usize>)> {
     let k = c_yx.nrows();
     if c_yx.ncols() != k || k == 0 || k > phi.ncols() || k > psi.ncols() {
         return Err(Error::invalid(
@@ -254,16 +306,20 @@ pub fn bijective_polish(
             ),
         ));
     }
+    let pinned = PinnedSamples::new(sx, sy, pins, phi.nrows(), psi.nrows())?;
     let w = POLISH_BIJECTIVITY;
     let (mut c_yx, mut c_xy) = (c_yx.to_owned(), c_yx.transpose().to_owned());
     for _ in 0..rounds {
-        (c_yx, c_xy) = bijective_round(phi, psi, sx, sy, (c_yx.as_ref(), c_xy.as_ref()), k, w, true)?;
+        (c_yx, c_xy) = bijective_round(phi, psi, sx, sy, (c_yx.as_ref(), c_xy.as_ref()), k, w, true, &pinned)?;
     }
-    let map_xy = match scope {
+    let mut map_xy = match scope {
         Scope::Near { near, x_cells, y_cells } => {
             bijective_map_near(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, x_cells, y_cells, near)?
         }
         Scope::Exact => bijective_map(phi, psi, c_yx.as_ref(), c_xy.as_ref(), w, None, None)?,
     };
+    for &(i, j) in pins {
+        map_xy[i] = j;
+    }
     Ok((c_yx, map_xy))
 }

@@ -149,6 +149,30 @@ pub fn map_of_pullback(
     }
 }
 
+/// The point map Y → X read off the pull-back C_yx (k_X × k_Y) of a map X → Y: for every vertex
+/// j of Y, the vertex i of X whose row of Φ_{k_X} C_yx is nearest to row j of Ψ_{k_Y} (the
+/// adjoint reading of C_yx, exact for an orthonormal one: then C_yxᵀ is the pull-back of the
+/// inverse map). `scope` is that of the map X → Y ([`map_of_pullback`]); with [`Scope::Near`]
+/// every vertex of Y is matched near the images of its cells `y_cells` among the vertices of X
+/// in the `near.cells` cells around `x_cells`. Errors as [`map_of_pullback`].
+pub fn map_yx_of_pullback(phi: MatRef<f64>, psi: MatRef<f64>, c_yx: MatRef<f64>, scope: Scope) -> Result<Vec<usize>> {
+    let (kx, ky) = check_map_fits(phi, psi, c_yx)?;
+    let reference = mul(phi.subcols(0, kx), c_yx);
+    match scope {
+        Scope::Exact => {
+            let query = Mat::from_fn(psi.nrows(), ky, |j, b| psi[(j, b)]);
+            nearest_neighbors(reference.as_ref(), query.as_ref())
+        }
+        Scope::Near { near, x_cells, y_cells } => {
+            let (query, back) = (psi.subcols(0, ky), near.reversed());
+            let images = sample_images_near(reference.as_ref(), query, y_cells, x_cells, &back)?;
+            let coarse = CoarseMap { x: back.x, y: back.y, samples: y_cells, images: &images, y_cells: x_cells };
+            let all: Vec<usize> = (0..psi.nrows()).collect();
+            nearest_neighbors_near_rows(reference.as_ref(), query, &coarse, back.cells, &all)
+        }
+    }
+}
+
 /// The nearest reference row (rows of Y, `reference` m × d) of every sample `sx` of X (rows of
 /// `query`, n × d), coarse to fine: each sample is first matched among the rows `y_cells` of Y
 /// only, then searched among the vertices of Y in the `near.cells` cells around that image

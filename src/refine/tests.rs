@@ -31,6 +31,9 @@ fn zoomout_recovers_a_permutation_from_a_coarse_start_on_samples() {
     let map = map_of_pullback(phi, psi, c.as_ref(), None, Scope::Exact).unwrap();
     assert_eq!(c.nrows(), 40);
     assert_eq!(map, perm, "ZoomOut on samples must recover the permutation");
+    // The map Y → X read off the same pull-back is the inverse permutation.
+    assert_eq!(map_yx_of_pullback(phi, psi, c.as_ref(), Scope::Exact).unwrap(), inv);
+    assert!(map_yx_of_pullback(phi, psi, Mat::<f64>::zeros(41, 40).as_ref(), Scope::Exact).is_err());
     // The identity permutation is orientation-preserving; the same map read on a mirrored
     // copy of Y is orientation-reversing.
     let normals = y.vertex_normals();

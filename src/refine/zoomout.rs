@@ -31,11 +31,36 @@ pub fn zoomout(
     opts: &ZoomOutOptions,
     scope: Scope,
 ) -> Result<Mat<f64>> {
+    zoomout_pinned(phi, psi, samples, c0, opts, scope, &[])
+}
+
+/// [`zoomout`] with known point pairs held fixed: every `(i, j)` of `pins` (vertex i of X, which
+/// must be one of the `samples`, and vertex j of Y) is matched to j in every point-map step,
+/// whatever the functional map says, so that every pull-back map is fitted to it (with the
+/// sample's weight). No pins: exactly [`zoomout`]. Errors as [`zoomout`], and for a pinned vertex
+/// that is not a sample or a vertex of Y out of range.
+#[allow(clippy::too_many_arguments)]
+pub fn zoomout_pinned(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    samples: &Samples,
+    c0: MatRef<f64>,
+    opts: &ZoomOutOptions,
+    scope: Scope,
+    pins: &[(usize, usize)],
+) -> Result<Mat<f64>> {
     check_zoomout(phi, psi, c0, opts)?;
+    let pinned = pin_positions(samples, pins, psi.nrows())?;
+    let pin = |mut map: Vec<usize>| {
+        for &(s, j) in &pinned {
+            map[s] = j;
+        }
+        map
+    };
     let (near, y_cells) = match scope {
         Scope::Exact => {
             return zoomout_loop(phi, psi, samples, c0.to_owned(), opts, |c| {
-                map_of_pullback(phi, psi, c, Some(&samples.vertices), Scope::Exact)
+                Ok(pin(map_of_pullback(phi, psi, c, Some(&samples.vertices), Scope::Exact)?))
             })
         }
         Scope::Near { near, x_cells, y_cells } => {
@@ -66,9 +91,26 @@ pub fn zoomout(
                 nearest_neighbors_near(reference.as_ref(), query.as_ref(), &coarse, near.cells)?
             }
         };
+        let map = pin(map);
         *prev = Some(map.clone());
         Ok(map)
     })
+}
+
+/// The positions in `samples` of the pinned vertices of X with their images: (sample position,
+/// vertex of Y) for every pin (i, j). Errors for a vertex i that is not a sample, or j ≥ `m`.
+pub(super) fn pin_positions(samples: &Samples, pins: &[(usize, usize)], m: usize) -> Result<Vec<(usize, usize)>> {
+    pins.iter()
+        .map(|&(i, j)| {
+            let s = samples.vertices.iter().position(|&v| v == i).ok_or_else(|| {
+                Error::invalid("pins", format!("pinned vertex {i} of X is not one of the {} samples", samples.len()))
+            })?;
+            if j >= m {
+                return Err(Error::invalid("pins", format!("vertex {j} of Y is out of range (m = {m})")));
+            }
+            Ok((s, j))
+        })
+        .collect()
 }
 
 /// The argument checks of [`zoomout`]: a square start no larger than K, K within the bases,

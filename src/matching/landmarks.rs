@@ -1,0 +1,330 @@
+//! Known corresponding points ("landmarks") in the default pipeline, for the pairs no intrinsic
+//! method can decide: non-isometric shapes (a gorilla and a human) and strongly symmetric ones.
+//! A few pairs (a_l on X, b_l on Y), l = 1 … L, given by the user, act in every stage a wrong
+//! basin can come from:
+//!
+//! 1. **Data.** For every landmark, `widths.len()` landmark-centred functions on each shape,
+//!    exp(−d(a_l, ·)² / 2σ²) on X and exp(−d(b_l, ·)² / 2σ²) on Y for every width σ, with d the
+//!    shortest-path distance along the edges of the surface scaled to unit area
+//!    ([`GraphGeodesics`]): the classical landmark descriptors of the functional-map literature,
+//!    as geodesic rather than heat-kernel bumps so that they keep their place on non-isometric
+//!    shapes whose spectra differ. Normalized as the other data, then scaled so that their total
+//!    squared norm is `weight` times that of the other data columns: with the default 1 the
+//!    landmarks weigh as much in the fits' descriptor terms as all the other data together.
+//! 2. **Candidates.** Every candidate's probe map is read at the landmarks of X, and its
+//!    *landmark error* (the mean geodesic distance on Y, unit area, between π(a_l) and b_l) enters
+//!    the score that chooses among them, counted in units of `tolerance` against the median-scaled
+//!    distortion and data misfit (a candidate that does not respect the landmarks is wrong). With
+//!    the basin search, one more candidate is made from the landmarks alone: every search sample
+//!    of X placed at the anchor of Y whose distances to the b_l best agree with its distances to
+//!    the a_l (an L1 trilateration, [`LandmarkData::trilateration_costs`]), corrected by the
+//!    search's rounds with that cost as their data term ([`super::search::correct`]).
+//! 3. **Refinement.** The landmarks are samples of every ZoomOut (probes and final) and of the
+//!    polish, with `pin_weight` times the mean sample weight, and pinned there: a_l is matched to
+//!    b_l in every point-map step ([`crate::refine::zoomout_pinned`],
+//!    [`crate::refine::bijective_polish_pinned`]), and in the final maps X → Y and Y → X.
+//!
+//! Without landmarks (`pairs` empty) none of this runs and the pipeline is unchanged, bit for bit.
+
+use faer::Mat;
+use serde::{Deserialize, Serialize};
+
+use crate::descriptors::Descriptors;
+use crate::error::{Error, Result};
+use crate::geodesic::GraphGeodesics;
+use crate::prepared::PreparedShape;
+use crate::spatial::Samples;
+
+use super::search::SampleDistances;
+
+/// The user's landmarks and how strongly they act ([module docs](self)).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Landmarks {
+    /// Known pairs (vertex of X, vertex of Y), 0-based (empty: no landmarks).
+    pub pairs: Vec<(usize, usize)>,
+    /// Total squared norm of the landmark functions relative to that of the other data columns
+    /// (each column of unit norm before this scaling; 0: no landmark functions in the data).
+    pub weight: f64,
+    /// Widths σ of the geodesic bumps around every landmark, on the shapes scaled to unit area.
+    pub widths: Vec<f64>,
+    /// Weight of a landmark sample in ZoomOut and the polish, in units of the mean sample weight.
+    pub pin_weight: f64,
+    /// Landmark error (mean geodesic distance on Y at unit area) that costs as much in the
+    /// candidates' score as the median distortion.
+    pub tolerance: f64,
+}
+
+impl Default for Landmarks {
+    fn default() -> Self {
+        Landmarks { pairs: Vec::new(), weight: 1.0, widths: vec![0.1, 0.2, 0.4], pin_weight: 1.0, tolerance: 0.05 }
+    }
+}
+
+impl Landmarks {
+    /// Whether landmarks are given.
+    pub fn is_empty(&self) -> bool {
+        self.pairs.is_empty()
+    }
+
+    /// Checks the pairs against shapes of `n` and `m` vertices and the weights: errors name
+    /// `landmarks` and the offending pair. A vertex of X given twice is an error (it cannot have
+    /// two images).
+    pub fn check(&self, n: usize, m: usize) -> Result<()> {
+        for (t, &(i, j)) in self.pairs.iter().enumerate() {
+            if i >= n || j >= m {
+                return Err(Error::invalid(
+                    "landmarks",
+                    format!("pair {} ({i}, {j}) is out of range: X has {n} vertices, Y has {m}", t + 1),
+                ));
+            }
+            if let Some(u) = self.pairs[..t].iter().position(|&(a, _)| a == i) {
+                return Err(Error::invalid(
+                    "landmarks",
+                    format!("vertex {i} of X is given twice (pairs {} and {})", u + 1, t + 1),
+                ));
+            }
+        }
+        for (name, v) in [
+            ("landmark weight", self.weight),
+            ("landmark pin weight", self.pin_weight),
+            ("landmark tolerance", self.tolerance),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::invalid(name, format!("must be finite and ≥ 0, got {v}")));
+            }
+        }
+        if self.tolerance == 0.0 {
+            return Err(Error::invalid("landmark tolerance", "must be > 0"));
+        }
+        if self.widths.is_empty() || self.widths.iter().any(|w| !(w.is_finite() && *w > 0.0)) {
+            return Err(Error::invalid(
+                "landmark widths",
+                format!("need one or more finite widths > 0, got {:?}", self.widths),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The landmarks of a pair of prepared shapes with their geodesic distance fields.
+pub(crate) struct LandmarkData {
+    /// The landmarks a_l on X.
+    pub xs: Vec<usize>,
+    /// Their images b_l on Y.
+    pub ys: Vec<usize>,
+    /// d_X(a_l, ·) (n × L), unit area.
+    pub dist_x: Mat<f64>,
+    /// d_Y(b_l, ·) (m × L), unit area.
+    pub dist_y: Mat<f64>,
+}
+
+impl LandmarkData {
+    /// The distance fields of the landmarks `opts.pairs` on the surfaces of `x` and `y` (None
+    /// without landmarks). Errors: pairs out of range or repeated, bad weights, shapes without a
+    /// surface (abstract data: no geodesics).
+    pub fn new(x: &PreparedShape, y: &PreparedShape, opts: &Landmarks) -> Result<Option<LandmarkData>> {
+        if opts.is_empty() {
+            return Ok(None);
+        }
+        opts.check(x.n(), y.n())?;
+        let (Some(tx), Some(ty)) = (x.triangles(), y.triangles()) else {
+            return Err(Error::invalid(
+                "landmarks",
+                "landmarks need shapes with a surface (meshes or 3-D point clouds) for their geodesic distances",
+            ));
+        };
+        let (xs, ys): (Vec<usize>, Vec<usize>) = opts.pairs.iter().copied().unzip();
+        let (dx, dy) = rayon::join(
+            || GraphGeodesics::mesh_edges(tx)?.distances(&xs),
+            || GraphGeodesics::mesh_edges(ty)?.distances(&ys),
+        );
+        Ok(Some(LandmarkData { xs, ys, dist_x: dx?, dist_y: dy? }))
+    }
+
+    /// Number of landmarks L.
+    pub fn len(&self) -> usize {
+        self.xs.len()
+    }
+
+    /// The pins (a_l, b_l).
+    pub fn pins(&self) -> Vec<(usize, usize)> {
+        self.xs.iter().copied().zip(self.ys.iter().copied()).collect()
+    }
+
+    /// F (n × q) and G (m × q), already normalized (unit columns), with the landmark bumps
+    /// appended ([module docs](self), 1.): L · widths columns on each shape, normalized with the
+    /// vertex weights of `x` and `y`, then scaled by √(weight · q / (L · widths)).
+    pub fn functions(
+        &self,
+        x: &PreparedShape,
+        y: &PreparedShape,
+        fx: &Descriptors,
+        gy: &Descriptors,
+        opts: &Landmarks,
+    ) -> Result<(Descriptors, Descriptors)> {
+        if opts.weight == 0.0 {
+            return Ok((fx.clone(), gy.clone()));
+        }
+        let (l, w) = (self.len(), opts.widths.len());
+        let q_lm = l * w;
+        let scale = if fx.q() == 0 { 1.0 } else { (opts.weight * fx.q() as f64 / q_lm as f64).sqrt() };
+        let bumps = |d: &Mat<f64>, mass: &[f64]| -> Result<Descriptors> {
+            let raw = Mat::from_fn(d.nrows(), q_lm, |i, c| {
+                let s = opts.widths[c % w];
+                let r = d[(i, c / w)];
+                (-(r * r) / (2.0 * s * s)).exp()
+            });
+            let names = (0..q_lm).map(|c| format!("landmark {} σ {}", c / w, opts.widths[c % w])).collect();
+            let unit = crate::descriptors::normalized(&Descriptors::new(raw, names)?, mass)?;
+            Descriptors::new(&unit.values * faer::Scale(scale), unit.names)
+        };
+        let (bx, by) = (bumps(&self.dist_x, &x.basis.mass)?, bumps(&self.dist_y, &y.basis.mass)?);
+        Ok((fx.concat(&bx)?, gy.concat(&by)?))
+    }
+
+    /// The landmark error of a map given by the images of the landmarks of X (`images[l]` the
+    /// vertex of Y of a_l): mean_l d_Y(images[l], b_l), unit area (unreachable: ∞).
+    pub fn error(&self, images: &[usize]) -> f64 {
+        images.iter().enumerate().map(|(l, &j)| self.dist_y[(j, l)]).sum::<f64>() / self.len().max(1) as f64
+    }
+
+    /// The trilateration costs (s × a) between the search samples of X (`sx`) and the anchors of
+    /// Y (`sy`): mean_l |d_X(s_i, a_l) − d_Y(anchor, b_l)|, pairs unreachable on either shape
+    /// skipped (a sample that reaches no landmark costs 0 everywhere).
+    pub fn trilateration_costs(&self, sx: &SampleDistances, sy: &SampleDistances) -> Mat<f64> {
+        let (xv, yv) = (&sx.samples.vertices, &sy.samples.vertices);
+        Mat::from_fn(xv.len(), yv.len(), |i, a| {
+            let (mut sum, mut count) = (0.0, 0usize);
+            for l in 0..self.len() {
+                let (p, q) = (self.dist_x[(xv[i], l)], self.dist_y[(yv[a], l)]);
+                if p.is_finite() && q.is_finite() {
+                    sum += (p - q).abs();
+                    count += 1;
+                }
+            }
+            if count > 0 {
+                sum / count as f64
+            } else {
+                0.0
+            }
+        })
+    }
+
+    /// For every search sample the anchor (vertex of Y) of least trilateration cost (`costs` from
+    /// [`LandmarkData::trilateration_costs`]).
+    pub fn trilaterate(&self, costs: &Mat<f64>, sy: &SampleDistances) -> Vec<usize> {
+        (0..costs.nrows())
+            .map(|i| {
+                let best = (0..costs.ncols()).min_by(|&a, &b| costs[(i, a)].total_cmp(&costs[(i, b)])).unwrap_or(0);
+                sy.samples.vertices[best]
+            })
+            .collect()
+    }
+}
+
+/// `samples` with the landmark vertices `vertices` added (those not among them yet) and every
+/// landmark sample weighted by at least `pin_weight` times the mean sample weight, so that the
+/// pull-back maps of ZoomOut and the polish are fitted to the pins.
+pub(crate) fn with_landmarks(mut samples: Samples, vertices: &[usize], pin_weight: f64) -> Samples {
+    if vertices.is_empty() {
+        return samples;
+    }
+    let mean = samples.weights.iter().sum::<f64>() / samples.len().max(1) as f64;
+    let w = pin_weight * mean;
+    for &v in vertices {
+        match samples.vertices.iter().position(|&s| s == v) {
+            Some(s) => samples.weights[s] = samples.weights[s].max(w),
+            None => {
+                samples.vertices.push(v);
+                samples.weights.push(w);
+            }
+        }
+    }
+    samples
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::descriptors::signatures::{wks_recipe, WksRecipe};
+    use crate::fmap::axiomatic::AxiomaticOptions;
+    use crate::fmap::energy::Orientation;
+    use crate::matching::axiomatic::{axiomatic_pipeline, AxiomaticPipeline};
+    use crate::prepared::LaplacianChoice;
+    use crate::primitives::mirror_symmetric_blob;
+    use crate::shape::Shape;
+
+    /// X (a mirror-symmetric blob), a vertex-permuted copy Y, the true map X → Y and its mirror
+    /// image.
+    fn pair() -> (PreparedShape, PreparedShape, Vec<usize>, Vec<usize>) {
+        let (x, mirror) = mirror_symmetric_blob(3);
+        let n = x.n_vertices();
+        let perm: Vec<usize> = (0..n).map(|i| (i * 211 + 17) % n).collect();
+        let mut inv = vec![0; n];
+        for (i, &p) in perm.iter().enumerate() {
+            inv[p] = i;
+        }
+        let y = x.permuted(&inv).unwrap();
+        let mirrored: Vec<usize> = (0..n).map(|i| perm[mirror[i]]).collect();
+        let prep =
+            |m: crate::shape::TriMesh| PreparedShape::new(Shape::Mesh(m), LaplacianChoice::Auto, 120, None).unwrap();
+        (prep(x), prep(y), perm, mirrored)
+    }
+
+    fn agreement(a: &[usize], b: &[usize]) -> f64 {
+        a.iter().zip(b).filter(|(p, q)| p == q).count() as f64 / a.len() as f64
+    }
+
+    /// The pipeline asked for the wrong orientation finds the mirror image of the true map (the
+    /// data cannot tell them apart); five landmarks with their true images give the true map
+    /// back, and hold at their images.
+    #[test]
+    fn landmarks_turn_a_flipped_map_into_the_true_one() {
+        let (x, y, truth, mirrored) = pair();
+        let r = WksRecipe::default();
+        let (f, g) = (wks_recipe(&x.basis, &r).unwrap(), wks_recipe(&y.basis, &r).unwrap());
+        let base = AxiomaticPipeline::default();
+        let p = AxiomaticPipeline { fit: AxiomaticOptions { orientation: Orientation::Reverse, ..base.fit }, ..base };
+        let flipped = axiomatic_pipeline(&x, &y, &f, &g, &p).unwrap();
+        let (good, bad) = (agreement(&flipped.map_xy, &truth), agreement(&flipped.map_xy, &mirrored));
+        assert!(bad > 0.95 && good < 0.1, "without landmarks: {bad} of the mirror image, {good} of the true map");
+        let all: Vec<usize> = (0..x.n()).collect();
+        let picks = crate::spatial::farthest_points(x.triangles().unwrap(), &all, 5);
+        let pairs: Vec<(usize, usize)> = picks.iter().map(|&i| (i, truth[i])).collect();
+        let with = AxiomaticPipeline { landmarks: Landmarks { pairs: pairs.clone(), ..Landmarks::default() }, ..p };
+        let res = axiomatic_pipeline(&x, &y, &f, &g, &with).unwrap();
+        let (good, bad) = (agreement(&res.map_xy, &truth), agreement(&res.map_xy, &mirrored));
+        assert!(good > 0.9 && bad < 0.1, "with 5 landmarks: {good} of the true map, {bad} of its mirror image");
+        assert!(pairs.iter().all(|&(i, j)| res.map_xy[i] == j));
+        let chosen = &res.candidates[res.chosen];
+        assert!(chosen.landmark_error < 0.05, "landmark error of the chosen candidate {}", chosen.landmark_error);
+        assert!(res.candidates.iter().any(|c| c.from_landmarks));
+    }
+
+    #[test]
+    fn bad_landmarks_are_errors() {
+        let ok = Landmarks { pairs: vec![(0, 1), (2, 3)], ..Landmarks::default() };
+        assert!(ok.check(4, 4).is_ok());
+        let e = Landmarks { pairs: vec![(0, 1), (2, 4)], ..ok.clone() }.check(4, 4).unwrap_err().to_string();
+        assert!(e.contains("landmarks") && e.contains("pair 2 (2, 4) is out of range"), "{e}");
+        let e = Landmarks { pairs: vec![(0, 1), (0, 3)], ..ok.clone() }.check(4, 4).unwrap_err().to_string();
+        assert!(e.contains("vertex 0 of X is given twice"), "{e}");
+        let e = Landmarks { weight: f64::NAN, ..ok.clone() }.check(4, 4).unwrap_err().to_string();
+        assert!(e.contains("landmark weight"), "{e}");
+        let e = Landmarks { widths: vec![0.1, 0.0], ..ok.clone() }.check(4, 4).unwrap_err().to_string();
+        assert!(e.contains("landmark widths"), "{e}");
+        let e = Landmarks { tolerance: 0.0, ..ok }.check(4, 4).unwrap_err().to_string();
+        assert!(e.contains("landmark tolerance"), "{e}");
+    }
+
+    /// The samples of ZoomOut and the polish get the landmarks, at least `pin_weight` times the
+    /// mean sample weight; without landmarks they are unchanged.
+    #[test]
+    fn landmarks_join_the_samples() {
+        let s = Samples { vertices: vec![3, 5, 9], weights: vec![1.0, 2.0, 3.0] };
+        assert_eq!(with_landmarks(s.clone(), &[], 10.0), s);
+        let t = with_landmarks(s, &[5, 7], 1.5);
+        assert_eq!(t.vertices, vec![3, 5, 9, 7]);
+        assert_eq!(t.weights, vec![1.0, 3.0, 3.0, 3.0]);
+    }
+}
