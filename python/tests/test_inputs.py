@@ -221,7 +221,7 @@ def test_a_noisy_mesh_is_smoothed_and_a_clean_one_is_not(mesh_x):
     assert funcorr.prepare((V, F), k=10).denoised is None
     P = funcorr.prepare((noisy, F), k=10)
     d = P.denoised
-    assert d["roughness_before"] > 0.05 and d["roughness_after"] <= 0.03 and d["time"] > 0, d
+    assert d["roughness_before"] > 0.05 and d["roughness_after"] <= 0.04 and d["time"] > 0, d
     assert d["folded_after"] <= d["folded_before"], d
     np.testing.assert_array_equal(P.vertices, noisy)
     assert funcorr.prepare((noisy, F), k=10, laplacian="cotan").denoised is None
