@@ -56,7 +56,8 @@
 //! Errors are always measured on the clean, unscaled mesh (geodesics / √area ×100): a mesh keeps
 //! its vertex ids; a cloud point maps to the nearest vertex of the clean position it was sampled
 //! from, and X's template vertices move to the nearest clean surface point (outliers excluded).
-//! With any perturbation the JSON line gets `"perturb"` (the settings) and, with `SCALE`,
+//! A shape smoothed before its Laplacian (`funcorr::denoise`, a noisy mesh) adds `"denoised_x"` or
+//! `"denoised_y"` (its `Denoising` report). With any perturbation the JSON line gets `"perturb"` (the settings) and, with `SCALE`,
 //! `"scale_x"`/`"scale_y"` (the factors).
 //!
 //! Reproducing the perturbed inputs (issue 27's data; `D=../shared/data/faust_r`, add `0:97`
@@ -584,6 +585,11 @@ fn main() -> Result<()> {
                     }
                     if pt.scale {
                         extra += &format!(",\"scale_x\":{:.6e},\"scale_y\":{:.6e}", x.factor, y.factor);
+                    }
+                    for (side, p) in [("x", xp), ("y", yp)] {
+                        if let Some(d) = p.denoising() {
+                            extra += &format!(",\"denoised_{side}\":{}", serde_json::to_string(d).expect("json"));
+                        }
                     }
                     format!(
                         "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"variant\":\"{}\",\"direct\":{d:.3},\"sym\":{s:.3},\"seconds\":{secs:.3},\"agree\":{agree:.3},\"distortion\":{dist:.4},\"k\":{chosen},\"search\":{search},\"stages\":{{{}}}{extra}}}",

@@ -22,6 +22,7 @@
 pub mod benchmark;
 pub mod cloud;
 pub mod completion;
+pub mod denoise;
 pub mod descriptors;
 pub mod error;
 pub mod eval;

@@ -12,12 +12,19 @@
 //! the shape. The eigenbasis cache is keyed by the input's Laplacian, so the cached bases are
 //! shared with `funcorr spectrum`. [`PreparedShape::input_basis`] gives the basis in the input's
 //! units.
+//!
+//! **Noisy meshes.** Under [`LaplacianChoice::Auto`] a mesh rough with noise is smoothed by one
+//! implicit step first ([`crate::denoise`]): its Laplacian, basis and surface (positions,
+//! normals, gradients) are the smoothed mesh's, `area` is the smoothed mesh's, and
+//! [`PreparedShape::denoising`] says what was done; `shape` stays the input, with the same
+//! vertices, so maps are maps of the input's vertices.
 
 use std::sync::OnceLock;
 
 use serde::{Deserialize, Serialize};
 
 use crate::cloud::{cloud_laplacian, CloudSurface, DEFAULT_NEIGHBOURS};
+use crate::denoise::{denoise, Denoising};
 use crate::error::{Error, Result};
 use crate::laplacian::{self, KnnOptions, Laplacian};
 use crate::operators::FaceGradients;
@@ -28,8 +35,9 @@ use crate::spectral::{self, Basis, BasisCache, SpectralOptions};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum LaplacianChoice {
-    /// Cotangent for meshes, the point-cloud Laplacian for 3-D point sets, the kNN graph for
-    /// other dimensions.
+    /// Cotangent for meshes — built on the smoothed geometry when the mesh is rough with noise
+    /// ([`crate::denoise::denoise`]; `Cotangent` takes the mesh as it is) —, the point-cloud
+    /// Laplacian for 3-D point sets, the kNN graph for other dimensions.
     #[default]
     Auto,
     /// Cotangent weights and barycentric mass (meshes).
@@ -56,6 +64,9 @@ pub enum Surface {
     Mesh,
     /// A point cloud's oriented union of local Delaunay fans.
     Cloud(CloudSurface),
+    /// A noisy mesh's smoothed geometry ([`crate::denoise`]; the same vertices and faces,
+    /// moved), which the Laplacian was built on, and what the smoothing did.
+    Denoised(TriMesh, Denoising),
 }
 
 /// A shape with its Laplacian, its eigenbasis and (on demand) its surface geometry, scaled to
@@ -118,6 +129,7 @@ impl PreparedShape {
             let shrink = |p: [f64; 3]| [p[0] / root, p[1] / root, p[2] / root];
             match (&mut surface, &shape) {
                 (Some(Surface::Mesh), Shape::Mesh(m)) => unit_mesh = m.map_vertices(shrink).ok(),
+                (Some(Surface::Denoised(m, _)), _) => unit_mesh = m.map_vertices(shrink).ok(),
                 (Some(Surface::Cloud(c)), _) => {
                     if let Ok(soup) = c.soup.map_vertices(shrink) {
                         c.soup = soup;
@@ -125,7 +137,7 @@ impl PreparedShape {
                 }
                 _ => {}
             }
-        } else if let (Some(Surface::Mesh), Shape::Mesh(m)) = (&surface, &shape) {
+        } else if let (Some(Surface::Mesh), Shape::Mesh(m)) | (Some(Surface::Denoised(m, _)), _) = (&surface, &shape) {
             unit_mesh = Some(m.clone());
         }
         PreparedShape {
@@ -154,6 +166,15 @@ impl PreparedShape {
         }
     }
 
+    /// What the denoising of a rough mesh did ([`crate::denoise`]; `None`: the shape's own
+    /// geometry is used).
+    pub fn denoising(&self) -> Option<&Denoising> {
+        match &self.surface {
+            Some(Surface::Denoised(_, report)) => Some(report),
+            _ => None,
+        }
+    }
+
     /// Number of vertices n.
     pub fn n(&self) -> usize {
         self.shape.n_vertices()
@@ -163,7 +184,7 @@ impl PreparedShape {
     /// abstract data or a kNN-graph Laplacian of a cloud).
     pub fn triangles(&self) -> Option<&TriMesh> {
         match &self.surface {
-            Some(Surface::Mesh) => self.unit_mesh.as_ref(),
+            Some(Surface::Mesh | Surface::Denoised(..)) => self.unit_mesh.as_ref(),
             Some(Surface::Cloud(c)) => Some(&c.soup),
             _ => None,
         }
@@ -193,7 +214,7 @@ impl PreparedShape {
     pub fn normals(&self) -> Option<&[[f64; 3]]> {
         self.normals
             .get_or_init(|| match (&self.surface, &self.unit_mesh) {
-                (Some(Surface::Mesh), Some(m)) => Some(m.vertex_normals()),
+                (Some(Surface::Mesh | Surface::Denoised(..)), Some(m)) => Some(m.vertex_normals()),
                 (Some(Surface::Cloud(c)), _) => Some(c.normals.clone()),
                 _ => None,
             })
@@ -217,9 +238,11 @@ pub fn build_laplacian(shape: &Shape, choice: LaplacianChoice) -> Result<(Laplac
         }
     };
     match (choice, shape) {
-        (LaplacianChoice::Auto | LaplacianChoice::Cotangent, Shape::Mesh(m)) => {
-            Ok((laplacian::cotangent(m)?, Some(Surface::Mesh)))
-        }
+        (LaplacianChoice::Auto, Shape::Mesh(m)) => match denoise(m)? {
+            (None, _) => Ok((laplacian::cotangent(m)?, Some(Surface::Mesh))),
+            (Some(d), _) => Ok((d.laplacian, Some(Surface::Denoised(d.mesh, d.report)))),
+        },
+        (LaplacianChoice::Cotangent, Shape::Mesh(m)) => Ok((laplacian::cotangent(m)?, Some(Surface::Mesh))),
         (LaplacianChoice::Intrinsic, Shape::Mesh(m)) => {
             Ok((crate::geodesic::intrinsic_delaunay_laplacian(m)?, Some(Surface::Mesh)))
         }
@@ -267,6 +290,38 @@ pub fn build_laplacian(shape: &Shape, choice: LaplacianChoice) -> Result<(Laplac
 mod tests {
     use super::*;
     use crate::shape::PointSet;
+
+    /// The automatic Laplacian of a noisy mesh is built on its smoothed geometry, which the
+    /// surface (positions, normals, gradients) also is; the cotangent choice and a clean mesh
+    /// use the mesh as it is.
+    #[test]
+    fn a_noisy_mesh_is_prepared_on_its_smoothed_geometry() {
+        let clean = crate::primitives::icosphere(4);
+        let h = clean.mean_edge_length();
+        let mut rng = crate::rng::Normal::new(11);
+        let moved = clean.vertices().iter().map(|p| [0, 1, 2].map(|d| p[d] + 0.5 * h * rng.sample())).collect();
+        let noisy = TriMesh::new(moved, clean.faces().to_vec()).unwrap();
+        let p = PreparedShape::new(Shape::Mesh(clean.clone()), LaplacianChoice::Auto, 10, None).unwrap();
+        assert!(p.denoising().is_none());
+        let p = PreparedShape::new(Shape::Mesh(noisy.clone()), LaplacianChoice::Cotangent, 10, None).unwrap();
+        assert!(p.denoising().is_none());
+        let raw_positions = p.positions().unwrap().to_vec();
+        let p = PreparedShape::new(Shape::Mesh(noisy.clone()), LaplacianChoice::Auto, 10, None).unwrap();
+        let d = p.denoising().expect("smoothed").clone();
+        assert!(d.roughness_before > crate::denoise::NOISY_ROUGHNESS, "{d:?}");
+        let Shape::Mesh(kept) = &p.shape else { panic!("a mesh") };
+        assert_eq!(kept.vertices(), noisy.vertices(), "the shape keeps its input vertices");
+        // The surface is the smoothed mesh at unit area: rounder than the noisy one.
+        let spread = |v: &[[f64; 3]]| {
+            let r: Vec<f64> = v.iter().map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt()).collect();
+            let m = r.iter().sum::<f64>() / r.len() as f64;
+            (r.iter().map(|x| (x - m).powi(2)).sum::<f64>() / r.len() as f64).sqrt() / m
+        };
+        let (smooth, raw) = (spread(p.positions().unwrap()), spread(&raw_positions));
+        assert!(smooth < 0.67 * raw, "relative radial spread {smooth} smoothed, {raw} noisy");
+        assert_eq!(p.normals().unwrap().len(), noisy.n_vertices());
+        assert!(p.basis.eigenvalues[1] > 0.0 && p.basis.k() == 10);
+    }
 
     #[test]
     fn clouds_of_fewer_than_four_points_say_so() {

@@ -20,6 +20,7 @@ const LAYERS: &[(&str, f64)] = &[
     ("geodesic", 3.1),
     ("operators", 3.1),
     ("cloud", 3.2),
+    ("denoise", 3.3),
     ("spectral", 4.0),
     ("prepared", 4.1),
     ("descriptors", 5.0),

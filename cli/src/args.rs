@@ -36,8 +36,10 @@ pub(crate) enum WeightsChoice {
 /// How to build the Laplacian of a shape.
 #[derive(clap::Args)]
 pub(crate) struct LaplacianArgs {
-    /// Laplacian discretization (default: cotan for meshes, cloud for 3-D point sets, knn for
-    /// other point sets).
+    /// Laplacian discretization (default: cotan for meshes — built on the geometry smoothed by
+    /// one implicit step when a mesh is rough with noise, said on stderr and in report.json's
+    /// `denoised`; an explicit `--laplacian cotan` takes the mesh as it is —, cloud for 3-D
+    /// point sets, knn for other point sets).
     #[arg(long, value_enum)]
     pub(crate) laplacian: Option<LaplacianChoice>,
     /// Neighbours of the point-cloud Laplacian's local triangulations (default: 30, or n − 1

@@ -134,6 +134,7 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     let (px, py) = (px?, py?);
     for (path, p) in [(&args.x, &px), (&args.y, &py)] {
         warn_components(path, p);
+        note_denoising(path, p, args.quiet);
     }
     st.parts.extend(stx.parts.into_iter().map(|s| format!("X {s}")));
     st.parts.extend(sty.parts.into_iter().map(|s| format!("Y {s}")));
@@ -197,6 +198,9 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
                 #[serde(flatten)]
                 run: funcorr::matching::MatchReport<'a>,
                 log: &'a [String],
+                /// What the denoising of a rough (noisy) mesh did, for X and Y (null: the shape
+                /// as it is).
+                denoised: [Option<&'a funcorr::denoise::Denoising>; 2],
             }
             let report = ReportFile {
                 x: args.x.display().to_string(),
@@ -204,6 +208,7 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
                 data: &args.data,
                 run: r.report(&opts, x.n_vertices(), y.n_vertices(), f.q(), basis_k),
                 log: &stages,
+                denoised: [px.denoising(), py.denoising()],
             };
             let p = out.join("report.json");
             funcorr::io::write_atomic(&p, funcorr::io::to_json_sorted(&report)?)?;
@@ -234,6 +239,25 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     st.note(format!("q {} | C {}×{}", f.q(), r.c.nrows(), r.c.ncols()));
     st.finish();
     Ok(())
+}
+
+/// Says on stderr (unless quiet) when a mesh was rough with noise and its geometry was smoothed
+/// before its Laplacian was built (`funcorr::denoise`).
+pub(crate) fn note_denoising(path: &Path, p: &funcorr::PreparedShape, quiet: bool) {
+    if let (Some(d), false) = (p.denoising(), quiet) {
+        eprintln!(
+            "note: {} is rough with noise (roughness {:.3} > {}, rougher than any clean mesh measured): its \
+             Laplacian, descriptors and normals are computed on its geometry smoothed by one implicit step of time \
+             {:.2} h² (roughness {:.3}, area ×{:.2}); the map is a map of its vertices (--laplacian cotan: the mesh \
+             as it is)",
+            funcorr::error::escape_path(path),
+            d.roughness_before,
+            funcorr::denoise::NOISY_ROUGHNESS,
+            d.time,
+            d.roughness_after,
+            d.area_ratio,
+        );
+    }
 }
 
 /// Says on stderr when a shape has several connected components (of its faces, or of its

@@ -183,7 +183,9 @@ def prepare(shape: ShapeLike, k: int = 200, cache_dir=None, progress=None, **lap
 
     ``shape``: a path, ``(V, F)``, ``(V, None)`` / an (n, d) array of points.
     ``laplacian``: ``laplacian="auto"|"cotan"|"intrinsic"|"cloud"|"knn"`` (auto: cotangent for
-    meshes, the point-cloud Laplacian for 3-D points, kNN for other dimensions; ``"intrinsic"``:
+    meshes — on the geometry smoothed by one implicit step when the mesh is rough with noise,
+    reported by ``.denoised``; ``"cotan"`` takes the mesh as it is —, the point-cloud Laplacian
+    for 3-D points, kNN for other dimensions; ``"intrinsic"``:
     the cotangent Laplacian of the mesh's intrinsic Delaunay triangulation, for meshes with
     obtuse or sliver triangles — the cotangent Laplacian itself on Delaunay meshes),
     ``cloud_neighbours=30``, ``knn=10``, ``vertex_weights="identity"|"degree"``, ``sigma=None``.
@@ -193,8 +195,9 @@ def prepare(shape: ShapeLike, k: int = 200, cache_dir=None, progress=None, **lap
     (module ``funcorr._progress``). Ctrl-C stops the call (KeyboardInterrupt).
 
     The result has ``.eigenvalues`` (k,), ``.eigenvectors`` Φ (n, k), ``.mass`` A (n,) (in the
-    shape's units: Φᵀ diag(A) Φ = I, Σ A = ``.area``), ``.vertices``, ``.faces``, ``.n``, ``.k``;
-    it pickles (for Ray's object store).
+    shape's units: Φᵀ diag(A) Φ = I, Σ A = ``.area``), ``.vertices``, ``.faces``, ``.n``, ``.k``,
+    ``.denoised`` (None, or what the smoothing of a noisy mesh did); it pickles (for Ray's
+    object store).
     """
     with _reporting(progress, "funcorr.prepare") as report:
         return _funcorr.prepare(shape, k, cache_dir, report, **laplacian)

@@ -115,6 +115,23 @@ impl PyPrepared {
     fn _stiffness<'py>(&self, py: Python<'py>) -> (I64s<'py>, I64s<'py>, F64s<'py>) {
         arrays::csr_parts(py, &self.inner.laplacian)
     }
+    /// What the smoothing of a mesh rough with noise did before its Laplacian was built
+    /// (`funcorr::denoise`; with `laplacian="auto"`, the default): a dict with
+    /// `roughness_before`, `roughness_after`, `time` (of the one implicit step, in squared mean
+    /// edge lengths), `area_ratio`, `folded_before`, `folded_after`; None when the shape's own
+    /// geometry is used.
+    #[getter]
+    fn denoised<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(d) = self.inner.denoising() else { return Ok(None) };
+        let out = PyDict::new(py);
+        out.set_item("roughness_before", d.roughness_before)?;
+        out.set_item("roughness_after", d.roughness_after)?;
+        out.set_item("time", d.time)?;
+        out.set_item("area_ratio", d.area_ratio)?;
+        out.set_item("folded_before", d.folded_before)?;
+        out.set_item("folded_after", d.folded_after)?;
+        Ok(Some(out))
+    }
     /// Whether the shape is a triangle mesh.
     #[getter]
     fn is_mesh(&self) -> bool {

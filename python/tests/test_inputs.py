@@ -209,3 +209,19 @@ def test_results_have_a_short_repr(default_match, ground_truth):
     r.evaluate(*ground_truth)
     assert "mean error ×100" in repr(r)
     assert len(repr(r.X)) < 80
+
+
+def test_a_noisy_mesh_is_smoothed_and_a_clean_one_is_not(mesh_x):
+    # Gaussian noise of σ = 0.5 % of the bounding-box diagonal (seeded): the mesh is rough, and
+    # its Laplacian is built on the geometry smoothed by one step (`laplacian="auto"`, the
+    # default); the clean mesh, and the noisy one with `laplacian="cotan"`, are used as they are.
+    V, F = mesh_x
+    diag = np.linalg.norm(V.max(0) - V.min(0))
+    noisy = V + np.random.default_rng(27).normal(scale=0.005 * diag, size=V.shape)
+    assert funcorr.prepare((V, F), k=10).denoised is None
+    P = funcorr.prepare((noisy, F), k=10)
+    d = P.denoised
+    assert d["roughness_before"] > 0.05 and d["roughness_after"] <= 0.04 and d["time"] > 0, d
+    assert d["folded_after"] <= d["folded_before"], d
+    np.testing.assert_array_equal(P.vertices, noisy)
+    assert funcorr.prepare((noisy, F), k=10, laplacian="cotan").denoised is None
