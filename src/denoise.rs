@@ -33,14 +33,6 @@
 //! noisy mesh's Laplacian does not. The smoothed mesh's triangles are checked
 //! ([`folded_faces`]: fewer than the noisy mesh's, or an error) and reported.
 //!
-//! **Point clouds** ([`denoise_cloud`]): the same step on the cloud's local triangulations (the
-//! soup its Laplacian is built on, [`crate::cloud`]) with the cloud Laplacian, rough above
-//! [`NOISY_CLOUD_ROUGHNESS`], smoothed to [`CLEAN_CLOUD_ROUGHNESS`] (a soup is rougher than a
-//! mesh: its fans overlap and follow the noise; the constants are measured on clouds), the
-//! roughness of each trial time measured on the triangulations built again on the moved points
-//! (the moved soup keeps the fans of the noise and hardly gets smoother: measured that way the
-//! search ran to [`MAX_TIME`] on half the shapes and the maps broke).
-//!
 //! Noise too weak to pass [`NOISY_ROUGHNESS`] (FAUST at σ = 0.2 %: roughness 0.036) is left
 //! alone: it costs 1.34× the clean error there (24 pairs), within the 2×, and no clean
 //! shape can be told from it by this measure (shapes cut by a plane reach 0.040).
@@ -67,21 +59,6 @@ pub const NOISY_ROUGHNESS: f64 = 0.05;
 /// Longest smoothing time [`smoothing_time`] tries, in units of h² (FAUST at σ = 1 % reaches
 /// [`CLEAN_ROUGHNESS`] by 1.1–1.9 h²).
 pub const MAX_TIME: f64 = 8.0;
-
-/// [`cloud_roughness`] above which a 3-D point cloud is smoothed by [`denoise_cloud`]. Measured
-/// (`examples/cloud_roughness.rs`, 82 shapes of faust_r, tosca_r and tosca_nonisometric_r, each
-/// as its vertex cloud and as 5000 uniform surface samples): clean clouds 0.009–0.031, with
-/// Gaussian noise σ = 0.2 % of the diagonal 0.024–0.051, σ = 0.5 % 0.049–0.082, σ = 1 %
-/// 0.061–0.088. The threshold lies between the roughest clean and the smoothest σ = 0.5 % cloud;
-/// σ = 0.2 % is smoothed on some clouds and not on others.
-pub const NOISY_CLOUD_ROUGHNESS: f64 = 0.040;
-
-/// Roughness a noisy cloud is smoothed to: just below [`NOISY_CLOUD_ROUGHNESS`], so that the
-/// cloud is no longer rough by that measure. Measured on every 2nd faust_r pair, mesh → 5000
-/// uniform samples with σ = 0.5 % noise (EXPERIMENTS.md, "Noisy point clouds"): with this target
-/// (steps of 0.2–0.5 h²) the mean error fell from 10.59 to 4.73; with 0.031, the roughest clean
-/// cloud, the steps were twice as long and the mean 6.87, the median pair no better.
-pub const CLEAN_CLOUD_ROUGHNESS: f64 = 0.040;
 
 /// What [`denoise`] measured and did (reported in `report.json`).
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -189,26 +166,14 @@ pub fn folded_faces(mesh: &TriMesh) -> usize {
 /// [`MAX_TIME`] h² does not reach the target, that time. Errors: those of [`roughness`] and
 /// [`smooth_step`], a target not in (0, 1).
 pub fn smoothing_time(mesh: &TriMesh, lap: &Laplacian, target: f64) -> Result<(f64, TriMesh, f64)> {
-    let (h, _) = scales(mesh)?;
-    smallest_time(h, target, |t| {
-        let smooth = smooth_step(mesh, lap, t)?;
-        let r = roughness(&smooth)?;
-        Ok((smooth, r))
-    })
-}
-
-/// The smallest time t (units², at most [`MAX_TIME`] h², h in units) after which `at(t)` (a
-/// smoothed geometry and its roughness, decreasing with t) has a roughness of at most `target`,
-/// to within 3 % by bisection on log t after doubling from h² / 16; with it what `at` made. When
-/// [`MAX_TIME`] h² does not reach the target, that time. Errors: those of `at`, a target not in
-/// (0, 1).
-fn smallest_time<T>(h: f64, target: f64, at: impl Fn(f64) -> Result<(T, f64)>) -> Result<(f64, T, f64)> {
     if !(target > 0.0 && target < 1.0) {
         return Err(Error::invalid("roughness target", format!("{target} is not in (0, 1)")));
     }
-    let at = |c: f64| -> Result<(f64, T, f64)> {
+    let (h, _) = scales(mesh)?;
+    let at = |c: f64| -> Result<(f64, TriMesh, f64)> {
         let t = c * h * h;
-        let (smooth, r) = at(t)?;
+        let smooth = smooth_step(mesh, lap, t)?;
+        let r = roughness(&smooth)?;
         Ok((t, smooth, r))
     };
     // Bracket: double from 1/16 h² until the target is reached (or MAX_TIME).
@@ -277,57 +242,13 @@ pub fn denoise(mesh: &TriMesh) -> Result<(Option<Denoised>, f64)> {
 
 /// Roughness of a 3-D point cloud (n points): [`roughness`] of its local triangulations
 /// ([`crate::cloud::cloud_surface`] with [`crate::cloud::DEFAULT_NEIGHBOURS`] neighbours, at most
-/// n − 1), the surface its Laplacian is built on. Dimensionless. Errors: those of
+/// n − 1), the surface its Laplacian is built on. Dimensionless. Measured on clean and noisy
+/// clouds in `examples/cloud_roughness.rs` (EXPERIMENTS.md, "Noisy point clouds"); the pipeline
+/// does not smooth clouds (tried there, not kept). Errors: those of
 /// [`crate::cloud::cloud_surface`] and [`roughness`].
 pub fn cloud_roughness(points: &[[f64; 3]]) -> Result<f64> {
     let k = crate::cloud::DEFAULT_NEIGHBOURS.min(points.len().saturating_sub(1));
     roughness(&crate::cloud::cloud_surface(points, k)?.soup)
-}
-
-/// A point cloud [`denoise_cloud`] smoothed: its Laplacian (n × n) and surface built again on
-/// the smoothed points (same order), and the report.
-#[derive(Clone, Debug)]
-pub struct DenoisedCloud {
-    /// The point-cloud Laplacian of the smoothed points ([`crate::cloud::cloud_laplacian`]).
-    pub laplacian: Laplacian,
-    /// Their surface (normals and soup; the soup's vertices are the smoothed points).
-    pub surface: crate::cloud::CloudSurface,
-    /// What was measured and done (roughness and folded faces of the soups before and after).
-    pub report: Denoising,
-}
-
-/// Denoises a 3-D point cloud (n points) whose point-cloud Laplacian `lap` and `surface` were
-/// built with `k` neighbours ([`crate::cloud::cloud_laplacian`]), as [`denoise`] does a mesh:
-/// `Ok(None)` when the soup's [`roughness`] is at most [`NOISY_CLOUD_ROUGHNESS`], else one
-/// implicit step of the soup's points with `lap`, of the smallest time after which the local
-/// triangulations built again on the moved points have a roughness of at most
-/// [`CLEAN_CLOUD_ROUGHNESS`] (bisection as [`smoothing_time`]), and the Laplacian and surface of
-/// those points. Folded faces are reported, not checked (the soup is built again). Errors: those of [`roughness`], [`smooth_step`] and
-/// [`crate::cloud::cloud_laplacian`].
-pub fn denoise_cloud(lap: &Laplacian, surface: &crate::cloud::CloudSurface, k: usize) -> Result<Option<DenoisedCloud>> {
-    let soup = &surface.soup;
-    let before = roughness(soup)?;
-    if before <= NOISY_CLOUD_ROUGHNESS {
-        return Ok(None);
-    }
-    let (h, area) = scales(soup)?;
-    // The roughness of the cloud as the pipeline sees it: of the local triangulations built
-    // again on the moved points (the moved soup keeps the fans of the noise).
-    let (t, (laplacian, new), after) = smallest_time(h, CLEAN_CLOUD_ROUGHNESS, |t| {
-        let moved = step_positions(soup, lap, t)?;
-        let (l, surface) = crate::cloud::cloud_laplacian(&moved, k)?;
-        let r = roughness(&surface.soup)?;
-        Ok(((l, surface), r))
-    })?;
-    let report = Denoising {
-        roughness_before: before,
-        roughness_after: after,
-        time: t / (h * h),
-        area_ratio: new.soup.total_area() / area,
-        folded_before: folded_faces(soup),
-        folded_after: folded_faces(&new.soup),
-    };
-    Ok(Some(DenoisedCloud { laplacian, surface: new, report }))
 }
 
 /// The mean edge length h and the area of `mesh`, both finite and positive.
@@ -415,41 +336,16 @@ mod tests {
         }
     }
 
-    /// A clean sphere's vertex cloud is left alone; with noise of half an edge length it is
-    /// rough, and is smoothed to a clean cloud's roughness: its points (same count and order)
-    /// come back towards the sphere, its surface is built again on them. Units do not matter.
+    /// A cloud's roughness grows with noise, and does not depend on units.
     #[test]
-    fn a_noisy_cloud_is_detected_and_smoothed() {
-        let clean = icosphere(4);
-        let k = crate::cloud::DEFAULT_NEIGHBOURS;
-        let prepare = |pts: &[[f64; 3]]| crate::cloud::cloud_laplacian(pts, k).unwrap();
-        let (lap, surface) = prepare(clean.vertices());
-        assert!(denoise_cloud(&lap, &surface, k).unwrap().is_none());
-        let r = cloud_roughness(clean.vertices()).unwrap();
-        assert!(r < NOISY_CLOUD_ROUGHNESS, "clean sphere cloud: roughness {r}");
-
-        let h = clean.mean_edge_length();
-        let rough = noisy(&clean, 0.5 * h, 3);
-        let (lap, surface) = prepare(rough.vertices());
-        let d = denoise_cloud(&lap, &surface, k).unwrap().expect("smoothed");
-        let rep = &d.report;
-        assert!(rep.roughness_before > NOISY_CLOUD_ROUGHNESS, "{rep:?}");
-        assert_eq!(rep.roughness_before, cloud_roughness(rough.vertices()).unwrap());
-        assert!(rep.roughness_after < rep.roughness_before && rep.time > 0.0, "{rep:?}");
-        let moved = d.surface.soup.vertices();
-        assert_eq!(moved.len(), clean.n_vertices());
-        assert_eq!(d.laplacian.n(), clean.n_vertices());
-        let cloud_of = |v: &[[f64; 3]]| TriMesh::new(v.to_vec(), clean.faces().to_vec()).unwrap();
-        // Smoothed just until it is no longer rough: the radial scatter drops by 30 % (0.70 when
-        // written).
-        let (was, is) = (radial_scatter(&rough), radial_scatter(&cloud_of(moved)));
-        assert!(is < 0.8 * was, "radial scatter {is} after, {was} before (edge length {h})");
-        // The same cloud in other units: the same roughness and time.
-        let big: Vec<[f64; 3]> = rough.vertices().iter().map(|p| p.map(|c| c * 1e3)).collect();
-        let (lap, surface) = prepare(&big);
-        let db = denoise_cloud(&lap, &surface, k).unwrap().expect("smoothed");
-        assert!((db.report.roughness_before - rep.roughness_before).abs() < 1e-9);
-        assert!((db.report.time - rep.time).abs() < 1e-6 * rep.time, "{:?} {rep:?}", db.report);
+    fn cloud_roughness_grows_with_noise() {
+        let s = icosphere(4);
+        let h = s.mean_edge_length();
+        let r: Vec<f64> =
+            [0.0, 0.25, 0.5].iter().map(|&f| cloud_roughness(noisy(&s, f * h, 3).vertices()).unwrap()).collect();
+        assert!(r.windows(2).all(|w| w[0] < w[1]) && r[0] < 0.02, "{r:?}");
+        let big: Vec<[f64; 3]> = noisy(&s, 0.5 * h, 3).vertices().iter().map(|p| p.map(|c| c * 1e3)).collect();
+        assert!((cloud_roughness(&big).unwrap() - r[2]).abs() < 1e-9);
     }
 
     /// A step of zero time returns the positions unchanged.

@@ -17,9 +17,7 @@
 //! implicit step first ([`crate::denoise`]): its Laplacian, basis and surface (positions,
 //! normals, gradients) are the smoothed mesh's, `area` is the smoothed mesh's, and
 //! [`PreparedShape::denoising`] says what was done; `shape` stays the input, with the same
-//! vertices, so maps are maps of the input's vertices. A 3-D point cloud rough with noise is
-//! smoothed the same way on its local triangulations ([`crate::denoise::denoise_cloud`]), and
-//! its Laplacian and surface are built again on the smoothed points.
+//! vertices, so maps are maps of the input's vertices.
 
 use std::sync::OnceLock;
 
@@ -39,9 +37,7 @@ use crate::spectral::{self, Basis, BasisCache, SpectralOptions};
 pub enum LaplacianChoice {
     /// Cotangent for meshes — built on the smoothed geometry when the mesh is rough with noise
     /// ([`crate::denoise::denoise`]; `Cotangent` takes the mesh as it is) —, the point-cloud
-    /// Laplacian for 3-D point sets — built on the smoothed points when the cloud is rough
-    /// with noise ([`crate::denoise::denoise_cloud`]; `Cloud` takes the points as they are) —,
-    /// the kNN graph for other dimensions.
+    /// Laplacian for 3-D point sets, the kNN graph for other dimensions.
     #[default]
     Auto,
     /// Cotangent weights and barycentric mass (meshes).
@@ -71,9 +67,6 @@ pub enum Surface {
     /// A noisy mesh's smoothed geometry ([`crate::denoise`]; the same vertices and faces,
     /// moved), which the Laplacian was built on, and what the smoothing did.
     Denoised(TriMesh, Denoising),
-    /// A noisy point cloud's surface built on its smoothed points
-    /// ([`crate::denoise::denoise_cloud`]), and what the smoothing did.
-    DenoisedCloud(CloudSurface, Denoising),
 }
 
 /// A shape with its Laplacian, its eigenbasis and (on demand) its surface geometry, scaled to
@@ -137,7 +130,7 @@ impl PreparedShape {
             match (&mut surface, &shape) {
                 (Some(Surface::Mesh), Shape::Mesh(m)) => unit_mesh = m.map_vertices(shrink).ok(),
                 (Some(Surface::Denoised(m, _)), _) => unit_mesh = m.map_vertices(shrink).ok(),
-                (Some(Surface::Cloud(c) | Surface::DenoisedCloud(c, _)), _) => {
+                (Some(Surface::Cloud(c)), _) => {
                     if let Ok(soup) = c.soup.map_vertices(shrink) {
                         c.soup = soup;
                     }
@@ -173,11 +166,11 @@ impl PreparedShape {
         }
     }
 
-    /// What the denoising of a rough mesh or point cloud did ([`crate::denoise`]; `None`: the shape's own
+    /// What the denoising of a rough mesh did ([`crate::denoise`]; `None`: the shape's own
     /// geometry is used).
     pub fn denoising(&self) -> Option<&Denoising> {
         match &self.surface {
-            Some(Surface::Denoised(_, report) | Surface::DenoisedCloud(_, report)) => Some(report),
+            Some(Surface::Denoised(_, report)) => Some(report),
             _ => None,
         }
     }
@@ -192,7 +185,7 @@ impl PreparedShape {
     pub fn triangles(&self) -> Option<&TriMesh> {
         match &self.surface {
             Some(Surface::Mesh | Surface::Denoised(..)) => self.unit_mesh.as_ref(),
-            Some(Surface::Cloud(c) | Surface::DenoisedCloud(c, _)) => Some(&c.soup),
+            Some(Surface::Cloud(c)) => Some(&c.soup),
             _ => None,
         }
     }
@@ -208,7 +201,7 @@ impl PreparedShape {
         self.gradients
             .get_or_init(|| {
                 let w = match &self.surface {
-                    Some(Surface::Cloud(_) | Surface::DenoisedCloud(..)) => 1.0 / 3.0,
+                    Some(Surface::Cloud(_)) => 1.0 / 3.0,
                     _ => 1.0,
                 };
                 self.triangles().and_then(|t| FaceGradients::weighted(t, w).ok())
@@ -222,7 +215,7 @@ impl PreparedShape {
         self.normals
             .get_or_init(|| match (&self.surface, &self.unit_mesh) {
                 (Some(Surface::Mesh | Surface::Denoised(..)), Some(m)) => Some(m.vertex_normals()),
-                (Some(Surface::Cloud(c) | Surface::DenoisedCloud(c, _)), _) => Some(c.normals.clone()),
+                (Some(Surface::Cloud(c)), _) => Some(c.normals.clone()),
                 _ => None,
             })
             .as_deref()
@@ -277,12 +270,7 @@ pub fn build_laplacian(shape: &Shape, choice: LaplacianChoice) -> Result<(Laplac
                 ));
             }
             let k = DEFAULT_NEIGHBOURS.min(pts.len() - 1);
-            // A noisy cloud is smoothed first, as a noisy mesh (crate::denoise).
-            let (lap, surface) = cloud_laplacian(&pts, k)?;
-            match crate::denoise::denoise_cloud(&lap, &surface, k)? {
-                None => Ok((lap, Some(Surface::Cloud(surface)))),
-                Some(d) => Ok((d.laplacian, Some(Surface::DenoisedCloud(d.surface, d.report)))),
-            }
+            cloud(&pts, k)
         }
         (LaplacianChoice::Cloud { k }, s) => match points3(s) {
             Some(pts) => cloud(&pts, k),

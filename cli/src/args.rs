@@ -39,9 +39,7 @@ pub(crate) struct LaplacianArgs {
     /// Laplacian discretization (default: cotan for meshes — built on the geometry smoothed by
     /// one implicit step when a mesh is rough with noise, said on stderr and in report.json's
     /// `denoised`; an explicit `--laplacian cotan` takes the mesh as it is —, cloud for 3-D
-    /// point sets — likewise built on smoothed points when a cloud is rough with noise; an
-    /// explicit `--laplacian cloud` or `--cloud-neighbours` takes the points as they are —, knn
-    /// for other point sets).
+    /// point sets, knn for other point sets).
     #[arg(long, value_enum)]
     pub(crate) laplacian: Option<LaplacianChoice>,
     /// Neighbours of the point-cloud Laplacian's local triangulations (default: 30, or n − 1

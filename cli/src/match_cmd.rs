@@ -241,22 +241,18 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     Ok(())
 }
 
-/// Says on stderr (unless quiet) when a mesh or point cloud was rough with noise and its geometry
-/// was smoothed before its Laplacian was built (`funcorr::denoise`).
+/// Says on stderr (unless quiet) when a mesh was rough with noise and its geometry was smoothed
+/// before its Laplacian was built (`funcorr::denoise`).
 pub(crate) fn note_denoising(path: &Path, p: &funcorr::PreparedShape, quiet: bool) {
     if let (Some(d), false) = (p.denoising(), quiet) {
-        let (what, threshold, as_is) = match p.shape {
-            Shape::Mesh(_) => ("mesh", funcorr::denoise::NOISY_ROUGHNESS, "--laplacian cotan: the mesh as it is"),
-            Shape::Points(_) => {
-                ("point cloud", funcorr::denoise::NOISY_CLOUD_ROUGHNESS, "--laplacian cloud: the points as they are")
-            }
-        };
         eprintln!(
-            "note: {} is rough with noise (roughness {:.3} > {threshold}, rougher than any clean {what} measured): its \
+            "note: {} is rough with noise (roughness {:.3} > {}, rougher than any clean mesh measured): its \
              Laplacian, descriptors and normals are computed on its geometry smoothed by one implicit step of time \
-             {:.2} h² (roughness {:.3}, area ×{:.2}); the map is a map of its vertices ({as_is})",
+             {:.2} h² (roughness {:.3}, area ×{:.2}); the map is a map of its vertices (--laplacian cotan: the mesh \
+             as it is)",
             funcorr::error::escape_path(path),
             d.roughness_before,
+            funcorr::denoise::NOISY_ROUGHNESS,
             d.time,
             d.roughness_after,
             d.area_ratio,

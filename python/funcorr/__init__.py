@@ -185,8 +185,7 @@ def prepare(shape: ShapeLike, k: int = 200, cache_dir=None, progress=None, **lap
     ``laplacian``: ``laplacian="auto"|"cotan"|"intrinsic"|"cloud"|"knn"`` (auto: cotangent for
     meshes — on the geometry smoothed by one implicit step when the mesh is rough with noise,
     reported by ``.denoised``; ``"cotan"`` takes the mesh as it is —, the point-cloud Laplacian
-    for 3-D points — likewise on smoothed points when the cloud is rough with noise; ``"cloud"``
-    takes the points as they are —, kNN for other dimensions; ``"intrinsic"``:
+    for 3-D points, kNN for other dimensions; ``"intrinsic"``:
     the cotangent Laplacian of the mesh's intrinsic Delaunay triangulation, for meshes with
     obtuse or sliver triangles — the cotangent Laplacian itself on Delaunay meshes),
     ``cloud_neighbours=30``, ``knn=10``, ``vertex_weights="identity"|"degree"``, ``sigma=None``.
@@ -197,7 +196,7 @@ def prepare(shape: ShapeLike, k: int = 200, cache_dir=None, progress=None, **lap
 
     The result has ``.eigenvalues`` (k,), ``.eigenvectors`` Φ (n, k), ``.mass`` A (n,) (in the
     shape's units: Φᵀ diag(A) Φ = I, Σ A = ``.area``), ``.vertices``, ``.faces``, ``.n``, ``.k``,
-    ``.denoised`` (None, or what the smoothing of a noisy mesh or cloud did); it pickles (for Ray's
+    ``.denoised`` (None, or what the smoothing of a noisy mesh did); it pickles (for Ray's
     object store).
     """
     with _reporting(progress, "funcorr.prepare") as report:

@@ -115,8 +115,8 @@ impl PyPrepared {
     fn _stiffness<'py>(&self, py: Python<'py>) -> (I64s<'py>, I64s<'py>, F64s<'py>) {
         arrays::csr_parts(py, &self.inner.laplacian)
     }
-    /// What the smoothing of a mesh or 3-D point cloud rough with noise did before its
-    /// Laplacian was built (`funcorr::denoise`; with `laplacian="auto"`, the default): a dict with
+    /// What the smoothing of a mesh rough with noise did before its Laplacian was built
+    /// (`funcorr::denoise`; with `laplacian="auto"`, the default): a dict with
     /// `roughness_before`, `roughness_after`, `time` (of the one implicit step, in squared mean
     /// edge lengths), `area_ratio`, `folded_before`, `folded_after`; None when the shape's own
     /// geometry is used.

@@ -225,18 +225,3 @@ def test_a_noisy_mesh_is_smoothed_and_a_clean_one_is_not(mesh_x):
     assert d["folded_after"] <= d["folded_before"], d
     np.testing.assert_array_equal(P.vertices, noisy)
     assert funcorr.prepare((noisy, F), k=10, laplacian="cotan").denoised is None
-
-
-def test_a_noisy_cloud_is_smoothed_before_its_laplacian(mesh_x):
-    # The same for a 3-D point cloud (funcorr::denoise::denoise_cloud): the noisy vertex cloud is
-    # rough and smoothed, the clean one and the noisy one with laplacian="cloud" are used as they
-    # are; the points stay the input's.
-    V, _ = mesh_x
-    diag = np.linalg.norm(V.max(0) - V.min(0))
-    noisy = V + np.random.default_rng(27).normal(scale=0.005 * diag, size=V.shape)
-    assert funcorr.prepare(V, k=10).denoised is None
-    P = funcorr.prepare(noisy, k=10)
-    d = P.denoised
-    assert d["roughness_before"] > 0.04 and d["roughness_after"] < d["roughness_before"] and d["time"] > 0, d
-    np.testing.assert_array_equal(P.vertices, noisy)
-    assert funcorr.prepare(noisy, k=10, laplacian="cloud").denoised is None
