@@ -564,14 +564,18 @@ fn main() -> Result<()> {
                     let chosen = r.candidates.as_ref().map_or(0, |(c, i)| c[*i].k);
                     let search = match (&r.correction, &r.candidates) {
                         (Some(c), Some((cands, i))) => format!(
-                            "{{\"moved\":{},\"rounds\":{},\"start\":{:.4},\"end\":{:.4},\"corrected\":{},\"from_landmarks\":{},\"landmark_error\":{:.4}}}",
+                            "{{\"moved\":{},\"rounds\":{},\"start\":{:.4},\"end\":{:.4},\"corrected\":{},\"from_landmarks\":{},\"landmark_error\":{}}}",
                             c.moved,
                             c.trace.len() - 1,
                             c.trace[0],
                             c.trace.iter().copied().fold(f64::INFINITY, f64::min),
                             cands[*i].corrected_from.is_some(),
                             cands[*i].from_landmarks,
-                            cands[*i].landmark_error
+                            // JSON has no NaN: no landmarks, no error (null).
+                            match cands[*i].landmark_error {
+                                e if e.is_finite() => format!("{e:.4}"),
+                                _ => "null".to_string(),
+                            }
                         ),
                         _ => "null".to_string(),
                     };

@@ -168,7 +168,7 @@ pub fn detect(x: &PreparedShape, y: &PreparedShape, opts: &PartialOptions) -> De
     let area_ratio = x.area / y.area;
     let (boundary_x, boundary_y) = (relative_boundary(x), relative_boundary(y));
     let (partial, reason) = match (opts.mode, boundary_x) {
-        (PartialMode::Always, _) => (true, "asked (--partial)".to_string()),
+        (PartialMode::Always, _) => (true, "asked (option partial)".to_string()),
         (PartialMode::Never, _) => (false, "partial matching turned off".to_string()),
         (PartialMode::Auto, None) => {
             (false, "X is a point set: no boundary to measure (use --partial for a part)".to_string())
