@@ -107,21 +107,29 @@ pub fn hks(basis: &Basis, times: &[f64], normalize: bool) -> Result<Descriptors>
     Descriptors::new(h, times.iter().map(|t| format!("hks:t={t:.6e}")).collect())
 }
 
-/// Wave kernel signature with `count` energies: n × count, columns named `wks:e=…`.
-pub fn wks(basis: &Basis, count: usize, normalize: bool) -> Result<Descriptors> {
-    check_count(count)?;
-    let (nz, l1, lk) = nonzero(basis)?;
+/// The WKS's `count` log-energies for the non-zero eigenvalues λ_1 ≤ … ≤ λ_k (`l1`, `lk`):
+/// evenly spaced on [log λ_1, log λ_k], shrunk by 2σ at both ends when the range allows, and the
+/// Gaussian width σ = [`WKS_VARIANCE`] · (log λ_k − log λ_1) / count (Aubry et al. 2011).
+pub(crate) fn wks_energies(l1: f64, lk: f64, count: usize) -> (Vec<f64>, f64) {
     let (mut e_min, mut e_max) = (l1.ln(), lk.ln());
     let sigma = WKS_VARIANCE * (e_max - e_min) / count as f64;
     if e_max - e_min > 4.0 * sigma {
         e_min += 2.0 * sigma;
         e_max -= 2.0 * sigma;
     }
-    let energies: Vec<f64> = if count == 1 {
+    let energies = if count == 1 {
         vec![0.5 * (e_min + e_max)]
     } else {
         (0..count).map(|j| e_min + (e_max - e_min) * j as f64 / (count - 1) as f64).collect()
     };
+    (energies, sigma)
+}
+
+/// Wave kernel signature with `count` energies: n × count, columns named `wks:e=…`.
+pub fn wks(basis: &Basis, count: usize, normalize: bool) -> Result<Descriptors> {
+    check_count(count)?;
+    let (nz, l1, lk) = nonzero(basis)?;
+    let (energies, sigma) = wks_energies(l1, lk, count);
     let total: f64 = basis.mass.iter().sum();
     let mut c = Mat::<f64>::zeros(basis.k(), count);
     for (j, e) in energies.iter().enumerate() {

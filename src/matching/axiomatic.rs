@@ -809,7 +809,7 @@ fn refine_from(
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::descriptors::signatures::{wks_recipe, WksRecipe};
     use crate::fmap::axiomatic::spectral_side;
@@ -818,8 +818,9 @@ mod tests {
     use crate::primitives::mirror_symmetric_blob;
     use crate::shape::Shape;
 
-    /// X, a vertex-permuted copy Y, the true map X → Y and its mirror image.
-    fn pair() -> (PreparedShape, PreparedShape, Vec<usize>, Vec<usize>) {
+    /// X (a mirror-symmetric blob), a vertex-permuted copy Y, the true map X → Y and its mirror
+    /// image (also the pair of `landmarks`' tests).
+    pub(in crate::matching) fn pair() -> (PreparedShape, PreparedShape, Vec<usize>, Vec<usize>) {
         let (x, mirror) = mirror_symmetric_blob(3);
         let n = x.n_vertices();
         let perm: Vec<usize> = (0..n).map(|i| (i * 211 + 17) % n).collect(); // X vertex i is Y vertex perm[i]
@@ -834,7 +835,8 @@ mod tests {
         (prep(x), prep(y), perm, mirrored)
     }
 
-    fn agreement(a: &[usize], b: &[usize]) -> f64 {
+    /// The share of vertices on which two maps agree.
+    pub(in crate::matching) fn agreement(a: &[usize], b: &[usize]) -> f64 {
         a.iter().zip(b).filter(|(p, q)| p == q).count() as f64 / a.len() as f64
     }
 

@@ -249,31 +249,8 @@ mod tests {
     use crate::descriptors::signatures::{wks_recipe, WksRecipe};
     use crate::fmap::axiomatic::AxiomaticOptions;
     use crate::fmap::energy::Orientation;
+    use crate::matching::axiomatic::tests::{agreement, pair};
     use crate::matching::axiomatic::{axiomatic_pipeline, AxiomaticPipeline};
-    use crate::prepared::LaplacianChoice;
-    use crate::primitives::mirror_symmetric_blob;
-    use crate::shape::Shape;
-
-    /// X (a mirror-symmetric blob), a vertex-permuted copy Y, the true map X → Y and its mirror
-    /// image.
-    fn pair() -> (PreparedShape, PreparedShape, Vec<usize>, Vec<usize>) {
-        let (x, mirror) = mirror_symmetric_blob(3);
-        let n = x.n_vertices();
-        let perm: Vec<usize> = (0..n).map(|i| (i * 211 + 17) % n).collect();
-        let mut inv = vec![0; n];
-        for (i, &p) in perm.iter().enumerate() {
-            inv[p] = i;
-        }
-        let y = x.permuted(&inv).unwrap();
-        let mirrored: Vec<usize> = (0..n).map(|i| perm[mirror[i]]).collect();
-        let prep =
-            |m: crate::shape::TriMesh| PreparedShape::new(Shape::Mesh(m), LaplacianChoice::Auto, 120, None).unwrap();
-        (prep(x), prep(y), perm, mirrored)
-    }
-
-    fn agreement(a: &[usize], b: &[usize]) -> f64 {
-        a.iter().zip(b).filter(|(p, q)| p == q).count() as f64 / a.len() as f64
-    }
 
     /// The pipeline asked for the wrong orientation finds the mirror image of the true map (the
     /// data cannot tell them apart); five landmarks with their true images give the true map

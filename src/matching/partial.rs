@@ -58,7 +58,7 @@ use serde::{Deserialize, Serialize};
 
 use super::axiomatic::{choose, samples_of, AxiomaticPipeline, Candidate};
 use super::search::{self, SampleDistances};
-use crate::descriptors::signatures::{WksRecipe, WKS_VARIANCE};
+use crate::descriptors::signatures::{wks_energies, WksRecipe};
 use crate::descriptors::spec::PairDataSpec;
 use crate::descriptors::{self, Descriptors};
 use crate::error::{Error, Result};
@@ -244,18 +244,8 @@ pub fn pair_wks_at(
     let Some(first) = first.filter(|_| mu.iter().filter(|&&l| nonzero(l)).count() >= 2) else {
         return Err(Error::invalid("basis", "the WKS needs at least two non-zero eigenvalues of Y"));
     };
-    let count = recipe.energies;
-    let (mut e_min, mut e_max) = (first.ln(), top.ln());
-    let sigma = WKS_VARIANCE * (e_max - e_min) / count as f64;
-    if e_max - e_min > 4.0 * sigma {
-        e_min += 2.0 * sigma;
-        e_max -= 2.0 * sigma;
-    }
-    let energies: Vec<f64> = if count == 1 {
-        vec![0.5 * (e_min + e_max)]
-    } else {
-        (0..count).map(|j| e_min + (e_max - e_min) * j as f64 / (count - 1) as f64).step_by(recipe.keep_every).collect()
-    };
+    let (all, sigma) = wks_energies(first, top, recipe.energies);
+    let energies: Vec<f64> = all.into_iter().step_by(recipe.keep_every).collect();
     // One side: Σ_i φ_i(v)² g_e(λ_i) over the non-zero λ_i ≤ top, in Y's units.
     let side = |b: &crate::spectral::Basis, scale: f64| -> Result<Descriptors> {
         let used: Vec<usize> = (0..b.k())
