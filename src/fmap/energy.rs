@@ -44,7 +44,7 @@
 
 use crate::linalg::mul;
 use faer::linalg::matmul::matmul;
-use faer::{Accum, Mat, MatRef, Par, Side};
+use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
@@ -454,17 +454,19 @@ impl Energy {
                     }
                 }
             }
-            // Σ_p X_p ⊗ Y_p as one product: G[(j, j'), (i, i')] = Σ_p X_p[j, j'] Y_p[i, i'].
+            // Σ_p X_p ⊗ Y_p by products: G[(j, j'), (i, i')] = Σ_p X_p[j, j'] Y_p[i, i'], formed one
+            // column j' of X at a time (k_X × k_Y² each) so that no k_X² × k_Y² matrix beside H is
+            // ever held (at k = 50 it would be another 50 MB per fit).
             let q = ox.len();
             let xv = Mat::from_fn(kx * kx, q, |r, p| ox[p][(r % kx, r / kx)]);
             let yv = Mat::from_fn(ky * ky, q, |r, p| oy[p][(r % ky, r / ky)]);
-            let g = mul(xv.as_ref(), yv.transpose());
+            let mut g = Mat::<f64>::zeros(kx, ky * ky);
             for jp in 0..kx {
+                matmul(g.as_mut(), Accum::Replace, xv.subrows(jp * kx, kx), yv.transpose(), 1.0, Par::Seq);
                 for j in 0..kx {
-                    let row = j + jp * kx;
                     for ip in 0..ky {
                         for i in 0..ky {
-                            let v = g[(row, i + ip * ky)];
+                            let v = g[(j, i + ip * ky)];
                             // (X ⊗ Y)[(i + j ky), (i' + j' ky)] = X[j, j'] Y[i, i'], and its transpose.
                             h[(i + j * ky, ip + jp * ky)] -= w * sigma * v;
                             h[(ip + jp * ky, i + j * ky)] -= w * sigma * v;
@@ -484,8 +486,14 @@ impl Energy {
     /// equations is checked (≤ 1e-8).
     pub fn solve(&self) -> Result<Mat<f64>> {
         let (kx, ky) = (self.k_x(), self.k_y());
-        let (h, rhs) = self.normal_equations();
-        let x = solve_symmetric(h.as_ref(), &rhs)?;
+        let (mut h, rhs) = self.normal_equations();
+        // H x − rhs = ∇E(C) / 2 (E = xᵀ H x − 2 rhsᵀ x + const): the residual from the terms'
+        // gradients, so H need not outlive its factorization.
+        let residual = |x: &[f64]| -> Vec<f64> {
+            let g = self.gradient(Mat::from_fn(ky, kx, |i, j| x[i + j * ky]).as_ref());
+            (0..kx * ky).map(|t| 0.5 * g[(t % ky, t / ky)]).collect()
+        };
+        let x = solve_symmetric(h.as_mut(), &rhs, residual, || self.normal_equations().0)?;
         Ok(Mat::from_fn(ky, kx, |i, j| x[i + j * ky]))
     }
 
@@ -500,51 +508,74 @@ impl Energy {
         if kx == 1 {
             return Ok(Mat::from_fn(ky, 1, |i, _| first[i]));
         }
-        let (h, rhs) = self.normal_equations();
+        let (mut h, rhs) = self.normal_equations();
         let kk = kx * ky;
         let nf = kk - ky;
-        let hff = h.submatrix(ky, ky, nf, nf);
         let b: Vec<f64> =
             (0..nf).map(|t| rhs[ky + t] - (0..ky).map(|i| h[(ky + t, i)] * first[i]).sum::<f64>()).collect();
-        let x = solve_symmetric(hff, &b)?;
-        Ok(Mat::from_fn(ky, kx, |i, j| if j == 0 { first[i] } else { x[i + (j - 1) * ky] }))
+        // H_ff x_f − b_f = (H x − rhs)_f = (∇E(C) / 2)_f with C = [first, x_f].
+        let full = |x: &[f64]| Mat::from_fn(ky, kx, |i, j| if j == 0 { first[i] } else { x[i + (j - 1) * ky] });
+        let residual = |x: &[f64]| -> Vec<f64> {
+            let g = self.gradient(full(x).as_ref());
+            (0..nf).map(|t| 0.5 * g[(t % ky, 1 + t / ky)]).collect()
+        };
+        let rebuild = || self.normal_equations().0.submatrix(ky, ky, nf, nf).to_owned();
+        let x = solve_symmetric(h.as_mut().submatrix_mut(ky, ky, nf, nf), &b, residual, rebuild)?;
+        Ok(full(&x))
     }
 }
 
-/// x = H⁻¹ b for a symmetric positive semi-definite H: Cholesky, or the minimum-norm solution from
-/// the eigendecomposition when H is singular; the relative residual is checked (≤ 1e-8).
-fn solve_symmetric(h: MatRef<f64>, rhs: &[f64]) -> Result<Vec<f64>> {
+/// x = H⁻¹ b for a symmetric positive semi-definite H (overwritten: factored in place by
+/// Cholesky, so no copy of H is made), or, when H is singular, the minimum-norm solution from the
+/// eigendecomposition of H built again by `rebuild`. `residual(x)` = H x − b, from which the
+/// relative residual is checked (≤ 1e-8).
+fn solve_symmetric(
+    mut h: MatMut<f64>,
+    rhs: &[f64],
+    residual: impl Fn(&[f64]) -> Vec<f64>,
+    rebuild: impl FnOnce() -> Mat<f64>,
+) -> Result<Vec<f64>> {
+    use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+    use faer::linalg::cholesky::llt;
     let kk = h.nrows();
-    let b = Mat::from_fn(kk, 1, |i, _| rhs[i]);
-    let x = match h.llt(Side::Lower) {
-        Ok(llt) => {
-            use faer::linalg::solvers::Solve;
-            llt.solve(&b)
-        }
-        Err(_) => {
-            let evd = h
-                .self_adjoint_eigen(Side::Lower)
-                .map_err(|e| Error::numerical("functional map", format!("eigendecomposition failed: {e:?}")))?;
-            let (u, s) = (evd.U(), evd.S());
-            let smax = (0..kk).fold(0.0f64, |m, i| m.max(s[i].abs()));
-            let cut = kk as f64 * f64::EPSILON * smax;
-            let utb = mul(u.transpose(), b.as_ref());
-            let y = Mat::from_fn(kk, 1, |i, _| if s[i] > cut { utb[(i, 0)] / s[i] } else { 0.0 });
-            mul(u, y.as_ref())
-        }
-    };
-    let hx = mul(h, x.as_ref());
-    let res = (&hx - &b).norm_l2();
-    let scale = b.norm_l2().max(hx.norm_l2()).max(f64::MIN_POSITIVE);
+    let mut x = Mat::from_fn(kk, 1, |i, _| rhs[i]);
+    let par = faer::get_global_parallelism();
+    let mut buf = MemBuffer::new(llt::factor::cholesky_in_place_scratch::<f64>(kk, par, Default::default()));
+    let factored = llt::factor::cholesky_in_place(
+        h.as_mut(),
+        Default::default(),
+        par,
+        MemStack::new(&mut buf),
+        Default::default(),
+    );
+    if factored.is_ok() {
+        llt::solve::solve_in_place(h.as_ref(), x.as_mut(), par, MemStack::new(&mut MemBuffer::new(StackReq::EMPTY)));
+    } else {
+        let h = rebuild();
+        let evd = h
+            .self_adjoint_eigen(Side::Lower)
+            .map_err(|e| Error::numerical("functional map", format!("eigendecomposition failed: {e:?}")))?;
+        let (u, s) = (evd.U(), evd.S());
+        let smax = (0..kk).fold(0.0f64, |m, i| m.max(s[i].abs()));
+        let cut = kk as f64 * f64::EPSILON * smax;
+        let utb = mul(u.transpose(), x.as_ref());
+        let y = Mat::from_fn(kk, 1, |i, _| if s[i] > cut { utb[(i, 0)] / s[i] } else { 0.0 });
+        x = mul(u, y.as_ref());
+    }
+    let out: Vec<f64> = x.col(0).iter().copied().collect();
+    if !out.iter().all(|v| v.is_finite()) {
+        return Err(Error::numerical("functional map", "the solution is not finite"));
+    }
+    let r = residual(&out);
+    let res = r.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let b = rhs.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let hx = r.iter().zip(rhs).map(|(a, c)| (a + c) * (a + c)).sum::<f64>().sqrt();
+    let scale = b.max(hx).max(f64::MIN_POSITIVE);
     if res.is_nan() || res > 1e-8 * scale {
         return Err(Error::numerical(
             "functional map",
             format!("normal equations solved to relative residual {:.1e}", res / scale),
         ));
-    }
-    let out: Vec<f64> = x.col(0).iter().copied().collect();
-    if !out.iter().all(|v| v.is_finite()) {
-        return Err(Error::numerical("functional map", "the solution is not finite"));
     }
     Ok(out)
 }
@@ -687,6 +718,32 @@ mod tests {
         }
         let free = g.subcols(1, kx - 1).norm_l2();
         assert!(free < 1e-9 * g.norm_l2().max(1.0), "free gradient {free}");
+    }
+
+    /// Descriptors alone, with a basis function of X that no descriptor has (a zero row of Â):
+    /// H = Â Âᵀ ⊗ I has an exactly zero pivot, the in-place Cholesky factorization fails, and the
+    /// solution is the minimum-norm one, C = B̂ (ÂᵀÂ)⁻¹ Âᵀ, from the eigendecomposition of H
+    /// built again (the failed factorization has overwritten the first one).
+    #[test]
+    fn singular_system_gives_the_minimum_norm_solution() {
+        let mut rng = Normal::new(11);
+        let (kx, ky, q) = (5, 4, 4);
+        let (mut x, y) = (side(kx, q, &mut rng), side(ky, q, &mut rng));
+        for p in 0..q {
+            x.coefficients[(kx - 1, p)] = 0.0;
+        }
+        let w = EnergyWeights { descriptors: 1.0, laplacian: 0.0, commutativity: 0.0, orientation: 0.0 };
+        let e = Energy::new(&x, &y, &w, Mask::Standard, Orientation::Ignore).unwrap();
+        let c = e.solve().unwrap();
+        let (a, b) = (x.coefficients.as_ref(), y.coefficients.as_ref());
+        let ata = mul(a.transpose(), a);
+        let inv = {
+            use faer::linalg::solvers::DenseSolveCore;
+            ata.as_ref().llt(Side::Lower).unwrap().inverse()
+        };
+        let expected = mul(mul(b, inv.as_ref()).as_ref(), a.transpose());
+        let diff = (&c - &expected).norm_l2();
+        assert!(diff < 1e-8 * expected.norm_l2(), "‖C − B̂ Â⁺‖ = {diff}");
     }
 
     #[test]
