@@ -129,17 +129,24 @@ fn run_benchmark(
     methods: &[MethodChoice],
     data: PairDataSpec,
     options: &dyn Fn(MethodChoice, bool) -> Result<funcorr::matching::MatchOptions>,
+    eigenpairs: Option<&dyn Fn(MethodChoice, bool) -> Result<usize>>,
     symmetric: bool,
     geodesics: GeodesicsChoice,
     cache: &CacheArgs,
     quiet: bool,
 ) -> Result<Report> {
     let is_rich = data.is_rich();
+    let eigenpairs = match eigenpairs {
+        Some(f) => {
+            Some(methods.iter().map(|&m| f(m, is_rich)).collect::<Result<Vec<_>>>()?.into_iter().max().unwrap_or(0))
+        }
+        None => None,
+    };
     let methods = methods
         .iter()
         .map(|&m| Ok(BenchMethod { name: method_name(m).to_string(), options: options(m, is_rich)? }))
         .collect::<Result<Vec<_>>>()?;
-    let opts = BenchOptions { data, methods, symmetric, geodesics: geodesics.into(), cache: cache.cache() };
+    let opts = BenchOptions { data, methods, symmetric, geodesics: geodesics.into(), cache: cache.cache(), eigenpairs };
     let pb = stage_bar(quiet);
     let progress = |stage: &str, done: usize, total: usize| {
         if done == 0 {
@@ -218,6 +225,12 @@ pub(crate) fn bench(args: &BenchArgs) -> Result<()> {
             &args.methods,
             data.clone(),
             &|m, rich| settings(&args.pipe, m)?.resolve_as(rich, &Flags),
+            // The eigenpairs `funcorr match` computes for the same options, so that the maps are
+            // the ones `match` makes.
+            Some(&|m, rich| {
+                let s = settings(&args.pipe, m)?;
+                Ok(s.basis_demand(&s.resolve_as(rich, &Flags)?, &Flags)?.size)
+            }),
             !args.no_symmetric,
             args.geodesics,
             &args.cache,
@@ -598,6 +611,7 @@ fn figure7(a: &ReproBenchArgs) -> Result<()> {
                 &a.methods,
                 data.clone(),
                 &options,
+                None,
                 true,
                 GeodesicsChoice::Exact,
                 &a.cache,

@@ -25,6 +25,12 @@ pub struct BenchOptions {
     pub geodesics: GeodesicMethod,
     /// Cache of eigenbases (None: compute every time).
     pub cache: Option<BasisCache>,
+    /// Eigenpairs computed per shape: at least what every method needs (its
+    /// [`MatchOptions::basis_size`]); a front end gives the number its `match` command computes
+    /// for the same options (e.g. `MatchSettings::basis_demand`) so that the bench runs exactly
+    /// the maps `match` makes (the default WKS use up to 128 eigenpairs, more than the axiomatic
+    /// method's own 110). None: what the methods need.
+    pub eigenpairs: Option<usize>,
 }
 
 /// The score of one method on one pair.
@@ -160,7 +166,7 @@ pub fn run(
     if pairs.is_empty() {
         return Err(Error::invalid("pairs", "no pairs to run"));
     }
-    let k = opts.methods.iter().map(|m| m.options.basis_size()).max().unwrap_or(1);
+    let k = opts.methods.iter().map(|m| m.options.basis_size()).max().unwrap_or(1).max(opts.eigenpairs.unwrap_or(0));
     let names: Vec<&str> =
         pairs.iter().flat_map(|(a, b)| [a.as_str(), b.as_str()]).collect::<BTreeSet<_>>().into_iter().collect();
     let done = AtomicUsize::new(0);
