@@ -1,5 +1,5 @@
 //! Dense linear-algebra helpers shared by the solvers (one copy each): the small product `mul`,
-//! the Frobenius inner product `frob`, and the tall-skinny products of the completion method
+//! the Frobenius inner product `frob`, the minimum-norm solve `min_norm_solve`, and the tall-skinny products of the completion method
 //! and of the block Lanczos eigensolver (`a_b`, `a_b_into`, `at_b`, `at_b_as_bt_a`).
 //!
 //! **Tall-skinny products.** The long dimension n (vertices, n ≫ p, q) is split into row chunks
@@ -20,6 +20,22 @@
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 use rayon::prelude::*;
+
+/// The minimum-norm solution X = H⁺ B of a symmetric positive semi-definite system (H k × k,
+/// B k × r) from the eigendecomposition of H: eigenvalues at or below k ε max|λ| count as zero.
+/// The fallback of the Cholesky solves when H is singular. `what` names the caller in errors.
+pub fn min_norm_solve(h: MatRef<f64>, b: MatRef<f64>, what: &str) -> crate::error::Result<Mat<f64>> {
+    let k = h.nrows();
+    let evd = h
+        .self_adjoint_eigen(faer::Side::Lower)
+        .map_err(|e| crate::error::Error::numerical(what, format!("eigendecomposition failed: {e:?}")))?;
+    let (u, s) = (evd.U(), evd.S());
+    let smax = (0..k).fold(0.0f64, |m, i| m.max(s[i].abs()));
+    let cut = k as f64 * f64::EPSILON * smax;
+    let utb = mul(u.transpose(), b);
+    let y = Mat::from_fn(k, b.ncols(), |i, j| if s[i] > cut { utb[(i, j)] / s[i] } else { 0.0 });
+    Ok(mul(u, y.as_ref()))
+}
 
 /// A B (a.nrows() × b.ncols()), sequential: callers parallelize at a coarser level.
 pub fn mul(a: MatRef<f64>, b: MatRef<f64>) -> Mat<f64> {

@@ -44,7 +44,7 @@
 
 use crate::linalg::mul;
 use faer::linalg::matmul::matmul;
-use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
+use faer::{Accum, Mat, MatMut, MatRef, Par};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
@@ -551,16 +551,7 @@ fn solve_symmetric(
     if factored.is_ok() {
         llt::solve::solve_in_place(h.as_ref(), x.as_mut(), par, MemStack::new(&mut MemBuffer::new(StackReq::EMPTY)));
     } else {
-        let h = rebuild();
-        let evd = h
-            .self_adjoint_eigen(Side::Lower)
-            .map_err(|e| Error::numerical("functional map", format!("eigendecomposition failed: {e:?}")))?;
-        let (u, s) = (evd.U(), evd.S());
-        let smax = (0..kk).fold(0.0f64, |m, i| m.max(s[i].abs()));
-        let cut = kk as f64 * f64::EPSILON * smax;
-        let utb = mul(u.transpose(), x.as_ref());
-        let y = Mat::from_fn(kk, 1, |i, _| if s[i] > cut { utb[(i, 0)] / s[i] } else { 0.0 });
-        x = mul(u, y.as_ref());
+        x = crate::linalg::min_norm_solve(rebuild().as_ref(), x.as_ref(), "functional map")?;
     }
     let out: Vec<f64> = x.col(0).iter().copied().collect();
     if !out.iter().all(|v| v.is_finite()) {
@@ -739,7 +730,7 @@ mod tests {
         let ata = mul(a.transpose(), a);
         let inv = {
             use faer::linalg::solvers::DenseSolveCore;
-            ata.as_ref().llt(Side::Lower).unwrap().inverse()
+            ata.as_ref().llt(faer::Side::Lower).unwrap().inverse()
         };
         let expected = mul(mul(b, inv.as_ref()).as_ref(), a.transpose());
         let diff = (&c - &expected).norm_l2();

@@ -89,7 +89,6 @@ fn regularized(p: &Problem, mu: f64) -> Result<Mat<f64>> {
 /// x = S⁻¹ r for symmetric positive semi-definite S: Cholesky, or the minimum-norm
 /// pseudo-inverse solution when S is (numerically) singular.
 fn solve_spd(sys: &Mat<f64>, rhs: Mat<f64>) -> Result<Vec<f64>> {
-    let k = sys.nrows();
     if let Ok(llt) = sys.llt(Side::Lower) {
         use faer::linalg::solvers::Solve;
         let x = llt.solve(&rhs);
@@ -97,15 +96,7 @@ fn solve_spd(sys: &Mat<f64>, rhs: Mat<f64>) -> Result<Vec<f64>> {
             return Ok(x.col(0).iter().copied().collect());
         }
     }
-    let evd = sys
-        .self_adjoint_eigen(Side::Lower)
-        .map_err(|e| Error::numerical("ovsjanikov", format!("eigendecomposition failed: {e:?}")))?;
-    let (u, s) = (evd.U(), evd.S());
-    let smax = (0..k).fold(0.0f64, |m, i| m.max(s[i].abs()));
-    let cut = k as f64 * f64::EPSILON * smax;
-    let utr = mul(u.transpose(), rhs.as_ref());
-    let y = Mat::from_fn(k, 1, |i, _| if s[i] > cut { utr[(i, 0)] / s[i] } else { 0.0 });
-    Ok(mul(u, y.as_ref()).col(0).iter().copied().collect())
+    Ok(crate::linalg::min_norm_solve(sys.as_ref(), rhs.as_ref(), "ovsjanikov")?.col(0).iter().copied().collect())
 }
 
 #[cfg(test)]
