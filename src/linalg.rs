@@ -1,6 +1,7 @@
 //! Dense linear-algebra helpers shared by the solvers (one copy each): the small product `mul`,
-//! the Frobenius inner product `frob`, the minimum-norm solve `min_norm_solve`, and the tall-skinny products of the completion method
-//! and of the block Lanczos eigensolver (`a_b`, `a_b_into`, `at_b`, `at_b_as_bt_a`).
+//! the Frobenius inner product `frob`, the minimum-norm solve `min_norm_solve`, and the
+//! tall-skinny products of the completion method and of the block Lanczos eigensolver (`a_b`,
+//! `a_b_into`, `at_b`, `at_b_as_bt_a`).
 //!
 //! **Tall-skinny products.** The long dimension n (vertices, n ≫ p, q) is split into row chunks
 //! run as rayon tasks, each a *sequential* faer GEMM: faer's own parallel GEMM spreads such

@@ -126,20 +126,20 @@ impl FaceGradients {
     }
 
     fn gradient_unchecked(&self, f: &[f64]) -> Vec<[f64; 3]> {
-        self.faces
-            .iter()
-            .zip(&self.hat)
-            .map(|(tri, g)| {
-                let mut out = [0.0; 3];
-                for c in 0..3 {
-                    let v = f[tri[c] as usize];
-                    for d in 0..3 {
-                        out[d] += v * g[c][d];
-                    }
-                }
-                out
-            })
-            .collect()
+        (0..self.faces.len()).map(|face| self.face_gradient(face, |i| f[i])).collect()
+    }
+
+    /// ∇f on one face of a PL function given by its vertex values `value(i)`.
+    fn face_gradient(&self, face: usize, value: impl Fn(usize) -> f64) -> [f64; 3] {
+        let (tri, g) = (self.faces[face], &self.hat[face]);
+        let mut out = [0.0; 3];
+        for c in 0..3 {
+            let v = value(tri[c] as usize);
+            for d in 0..3 {
+                out[d] += v * g[c][d];
+            }
+        }
+        out
     }
 
     /// n × ∇f on every face (n_f × 3): the gradient of f turned by +90° about the normal.
@@ -259,17 +259,8 @@ pub fn orientation_operators(
     let means = grads.weighted_face_means(phi)?;
     let (nf, k, q) = (grads.n_faces(), phi.ncols(), f.ncols());
     // n_F × ∇f_p on face F.
-    let rotated = |face: usize, p: usize| -> [f64; 3] {
-        let (tri, hat) = (grads.faces[face], &grads.hat[face]);
-        let mut gr = [0.0; 3];
-        for c in 0..3 {
-            let v = f[(tri[c] as usize, p)];
-            for d in 0..3 {
-                gr[d] += v * hat[c][d];
-            }
-        }
-        cross(grads.normals[face], gr)
-    };
+    let rotated =
+        |face: usize, p: usize| -> [f64; 3] { cross(grads.normals[face], grads.face_gradient(face, |i| f[(i, p)])) };
     // The largest |∇f_p| of every descriptor (for the unit gradients' zero test).
     let top: Vec<f64> = if unit_gradients {
         (0..q)

@@ -535,7 +535,7 @@ fn solve_symmetric(
     residual: impl Fn(&[f64]) -> Vec<f64>,
     rebuild: impl FnOnce() -> Mat<f64>,
 ) -> Result<Vec<f64>> {
-    use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+    use faer::dyn_stack::{MemBuffer, MemStack};
     use faer::linalg::cholesky::llt;
     let kk = h.nrows();
     let mut x = Mat::from_fn(kk, 1, |i, _| rhs[i]);
@@ -549,7 +549,7 @@ fn solve_symmetric(
         Default::default(),
     );
     if factored.is_ok() {
-        llt::solve::solve_in_place(h.as_ref(), x.as_mut(), par, MemStack::new(&mut MemBuffer::new(StackReq::EMPTY)));
+        llt::solve::solve_in_place(h.as_ref(), x.as_mut(), par, MemStack::new(&mut buf));
     } else {
         x = crate::linalg::min_norm_solve(rebuild().as_ref(), x.as_ref(), "functional map")?;
     }
