@@ -73,9 +73,13 @@ pub fn nearest_neighbors_near(
     nearest_neighbors_near_rows(reference, query, coarse, cells, &all)
 }
 
-/// Below this many query rows per cell of X, [`nearest_neighbors_near_rows`] copies the reference
-/// rows into cell order before gathering candidates.
-const SORT_BELOW_QUERIES_PER_CELL: usize = 8;
+/// The largest embedding value [`nearest_neighbors_near_rows`] accepts (that of the exact search,
+/// [`nearest_neighbors`]).
+const MAX_EMBEDDING: f64 = 1e30;
+
+/// Query rows whose products share one pass over a run of reference rows in
+/// [`nearest_in_runs`].
+const QUERY_GROUP: usize = 4;
 
 /// [`nearest_neighbors_near`] for the query rows `rows` only (vertex ids of X, any order,
 /// repeats allowed): returns the image of each, in the order of `rows`. Costs O(|rows| · cells ·
@@ -141,42 +145,142 @@ pub fn nearest_neighbors_near_rows(
     );
     let y_members = members(crate::spatial::nearest3(&centres, coarse.y), centres.len());
     let near = crate::spatial::nearest_n3(&centres, &points(coarse.images, coarse.y), cells.min(centres.len()));
-    // With few queries per cell (e.g. samples searched alone) gathering the candidate rows costs
-    // more than the search: one random read per entry. Then the rows of Y are first copied in
-    // cell order (one pass over m × d), so that each gather reads `cells` contiguous runs.
-    let busy = x_cells.iter().filter(|q| !q.is_empty()).count().max(1);
-    let by_cell = (rows.len() < SORT_BELOW_QUERIES_PER_CELL * busy).then(|| {
-        let order: Vec<usize> = y_members.concat();
-        let mut position = vec![0usize; m];
-        order.iter().enumerate().for_each(|(t, &j)| position[j] = t);
-        (Mat::from_fn(m, d, |t, c| reference[(order[t], c)]), position)
-    });
+    // Y's rows by cell (one pass over m × d): every cell one contiguous block, column-major
+    // within the block, so the kernel below streams a cell's rows with no gather and no
+    // stride of m between columns.
+    let cells_y = CellBlocks::new(reference, &y_members);
+    let usable = |v: f64| v.is_finite() && v.abs() <= MAX_EMBEDDING;
+    let rows_usable = (0..d).all(|c| rows.iter().all(|&i| usable(query[(i, c)])));
+    if !rows_usable || !cells_y.values.iter().all(|&v| usable(v)) {
+        return Err(Error::invalid("embedding", "it contains a non-finite value or one beyond 1e30 in magnitude"));
+    }
+    crate::progress::check()?;
     let results: Vec<Vec<(usize, usize)>> = x_cells
         .par_iter()
         .zip(near.par_iter())
-        .map(|(queries, near_cells)| -> Result<Vec<(usize, usize)>> {
-            if queries.is_empty() {
-                return Ok(Vec::new());
+        .map(|(queries, near_cells)| {
+            if queries.is_empty() || crate::progress::cancelled() {
+                return Vec::new(); // a cancelled search is discarded by the check below
             }
-            // Ascending vertex ids of Y (ties go to the smallest id, as in the exact search).
-            let mut candidates: Vec<usize> = near_cells.iter().flat_map(|&c| y_members[c].iter().copied()).collect();
-            candidates.sort_unstable();
-            let r = match &by_cell {
-                Some((sorted, position)) => {
-                    Mat::from_fn(candidates.len(), d, |t, c| sorted[(position[candidates[t]], c)])
+            // The queries' rows, row-major.
+            let mut q = vec![0.0f64; queries.len() * d];
+            for c in 0..d {
+                for (a, &i) in queries.iter().enumerate() {
+                    q[a * d + c] = query[(rows[i], c)];
                 }
-                None => Mat::from_fn(candidates.len(), d, |t, c| reference[(candidates[t], c)]),
-            };
-            let q = Mat::from_fn(queries.len(), d, |t, c| query[(rows[queries[t]], c)]);
-            let best = crate::spatial::nearest_rows(r.as_ref(), q.as_ref())?;
-            Ok(queries.iter().zip(best).map(|(&i, t)| (i, candidates[t])).collect())
+            }
+            let best = pulp::Arch::new().dispatch(NearestInCells { y: &cells_y, cells: near_cells, q: &q, d });
+            queries.iter().zip(best).map(|(&i, j)| (i, j)).collect()
         })
-        .collect::<Result<_>>()?;
+        .collect();
+    crate::progress::check()?;
     let mut map = vec![0usize; rows.len()];
     for (i, j) in results.into_iter().flatten() {
+        if j == usize::MAX {
+            return Err(Error::invalid("coarse map", "a query's cells of Y hold no vertex"));
+        }
         map[i] = j;
     }
     Ok(map)
+}
+
+/// The rows of Y (m × d) grouped by cell: cell `c` holds the vertices `order[starts[c]..starts[c
+/// + 1]]` (ascending) in one block of `values` from `starts[c] · d`, column-major within the
+/// block (entry (t, col) of the cell at `starts[c] · d + col · len + t`), with their squared norms
+/// `norms` (in the same order, summed over the columns in order as the exact search sums them).
+struct CellBlocks {
+    order: Vec<usize>,
+    starts: Vec<usize>,
+    values: Vec<f64>,
+    norms: Vec<f64>,
+    d: usize,
+}
+
+impl CellBlocks {
+    /// The blocks of `reference` (m × d) for the cells `members` (vertex lists of Y).
+    fn new(reference: MatRef<f64>, members: &[Vec<usize>]) -> Self {
+        let (m, d) = (reference.nrows(), reference.ncols());
+        let order: Vec<usize> = members.concat();
+        let mut starts = Vec::with_capacity(members.len() + 1);
+        starts.push(0usize);
+        for l in members {
+            starts.push(starts[starts.len() - 1] + l.len());
+        }
+        let mut values = vec![0.0f64; m * d];
+        let mut norms = vec![0.0f64; m];
+        for (cell, list) in members.iter().enumerate() {
+            let (s, len) = (starts[cell], list.len());
+            let block = &mut values[s * d..(s + len) * d];
+            for c in 0..d {
+                let col = reference.col(c);
+                for (t, &j) in list.iter().enumerate() {
+                    let v = col[j];
+                    block[c * len + t] = v;
+                    norms[s + t] += v * v;
+                }
+            }
+        }
+        CellBlocks { order, starts, values, norms, d }
+    }
+}
+
+/// The nearest row of Y, among the cells `cells` of [`CellBlocks`] `y`, of every query row of
+/// `q` (row-major, d values per row): the vertex j minimizing ‖r_j‖² − 2 q·r_j with the dot
+/// product summed over the columns in order, ties to the smallest vertex id — the exact search's
+/// rule, so the result equals [`nearest_neighbors`] among those rows. Vectorized across the rows
+/// of a cell (contiguous in every column of its block), [`QUERY_GROUP`] queries per pass over a
+/// block. A query with no candidate row gets `usize::MAX`.
+struct NearestInCells<'a> {
+    y: &'a CellBlocks,
+    cells: &'a [usize],
+    q: &'a [f64],
+    d: usize,
+}
+
+impl pulp::WithSimd for NearestInCells<'_> {
+    type Output = Vec<usize>;
+
+    // Plain loops, inlined into pulp's dispatch so that they are compiled once more with the
+    // CPU's vector instructions; separate multiplies and adds (Rust never fuses them), so every
+    // lane sums its dot product exactly as the scalar loop would.
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) -> Vec<usize> {
+        let NearestInCells { y, cells, q, d } = self;
+        let qn = q.len() / d.max(1);
+        let longest = cells.iter().map(|&c| y.starts[c + 1] - y.starts[c]).max().unwrap_or(0);
+        let mut acc = vec![0.0f64; QUERY_GROUP * longest];
+        let mut best = vec![(f64::INFINITY, usize::MAX); qn];
+        for &cell in cells {
+            let (s, len) = (y.starts[cell], y.starts[cell + 1] - y.starts[cell]);
+            if len == 0 {
+                continue;
+            }
+            let block = &y.values[s * y.d..(s + len) * y.d];
+            for g0 in (0..qn).step_by(QUERY_GROUP) {
+                let g = QUERY_GROUP.min(qn - g0);
+                let acc = &mut acc[..g * len];
+                acc.fill(0.0);
+                for (c, col) in block.chunks_exact(len).enumerate() {
+                    for (a, dots) in acc.chunks_exact_mut(len).enumerate() {
+                        let qc = q[(g0 + a) * d + c];
+                        for (x, &r) in dots.iter_mut().zip(col) {
+                            *x += qc * r;
+                        }
+                    }
+                }
+                for (a, dots) in acc.chunks_exact(len).enumerate() {
+                    let b = &mut best[g0 + a];
+                    for (t, &dot) in dots.iter().enumerate() {
+                        let (dist, j) = (y.norms[s + t] - 2.0 * dot, y.order[s + t]);
+                        if dist < b.0 || (dist == b.0 && j < b.1) {
+                            *b = (dist, j);
+                        }
+                    }
+                }
+            }
+        }
+        best.into_iter().map(|b| b.1).collect()
+    }
 }
 
 /// Point-to-point map X → Y of a functional map C (k_Y × k_X, coefficients on X → coefficients
