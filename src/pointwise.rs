@@ -77,10 +77,6 @@ pub fn nearest_neighbors_near(
 /// [`nearest_neighbors`]).
 const MAX_EMBEDDING: f64 = 1e30;
 
-/// Query rows whose products share one pass over a run of reference rows in
-/// [`nearest_in_runs`].
-const QUERY_GROUP: usize = 4;
-
 /// [`nearest_neighbors_near`] for the query rows `rows` only (vertex ids of X, any order,
 /// repeats allowed): returns the image of each, in the order of `rows`. Costs O(|rows| · cells ·
 /// m / #cells · d) plus the cells of Y; used where a point map is needed on part of X only (the
@@ -162,14 +158,15 @@ pub fn nearest_neighbors_near_rows(
             if queries.is_empty() || crate::progress::cancelled() {
                 return Vec::new(); // a cancelled search is discarded by the check below
             }
-            // The queries' rows, row-major.
-            let mut q = vec![0.0f64; queries.len() * d];
+            // The queries' rows, row-major, padded with zero rows to whole tiles.
+            let mut q = vec![0.0f64; queries.len().div_ceil(QUERY_TILE) * QUERY_TILE * d];
             for c in 0..d {
                 for (a, &i) in queries.iter().enumerate() {
                     q[a * d + c] = query[(rows[i], c)];
                 }
             }
-            let best = pulp::Arch::new().dispatch(NearestInCells { y: &cells_y, cells: near_cells, q: &q, d });
+            let best =
+                pulp::Arch::new().dispatch(NearestInCells { y: &cells_y, cells: near_cells, q: &q, qn: queries.len() });
             queries.iter().zip(best).map(|(&i, j)| (i, j)).collect()
         })
         .collect();
@@ -184,10 +181,14 @@ pub fn nearest_neighbors_near_rows(
     Ok(map)
 }
 
-/// The rows of Y (m × d) grouped by cell: cell `c` holds the vertices `order[starts[c]..starts[c
-/// + 1]]` (ascending) in one block of `values` from `starts[c] · d`, column-major within the
-/// block (entry (t, col) of the cell at `starts[c] · d + col · len + t`), with their squared norms
-/// `norms` (in the same order, summed over the columns in order as the exact search sums them).
+/// The rows of Y (m × d) grouped by cell, each cell padded to a multiple of [`ROW_TILE`] rows:
+/// cell `c` holds the rows `starts[c]..starts[c + 1]` of the padded order, `order[t]` the vertex
+/// of padded row t (ascending within a cell; `usize::MAX` for padding), stored in one block of
+/// `values` from `starts[c] · d`, in tiles of [`ROW_TILE`] rows, each tile column-major (entry
+/// (t, col) of a cell at `starts[c] · d + ⌊t / ROW_TILE⌋ · ROW_TILE · d + col · ROW_TILE + t mod
+/// ROW_TILE`: a tile is one contiguous strip, read in order by the kernel), with the squared norms `norms[t]`
+/// (summed over the columns in order, as the exact search sums them; +∞ for padding, so a
+/// padding row is never nearest).
 struct CellBlocks {
     order: Vec<usize>,
     starts: Vec<usize>,
@@ -196,26 +197,36 @@ struct CellBlocks {
     d: usize,
 }
 
+/// Rows of a cell per register tile of [`NearestInCells`] (two AVX2 vectors of f64).
+const ROW_TILE: usize = 8;
+
+/// Query rows per register tile of [`NearestInCells`].
+const QUERY_TILE: usize = 4;
+
 impl CellBlocks {
     /// The blocks of `reference` (m × d) for the cells `members` (vertex lists of Y).
     fn new(reference: MatRef<f64>, members: &[Vec<usize>]) -> Self {
-        let (m, d) = (reference.nrows(), reference.ncols());
-        let order: Vec<usize> = members.concat();
+        let d = reference.ncols();
+        let padded = |len: usize| len.div_ceil(ROW_TILE) * ROW_TILE;
         let mut starts = Vec::with_capacity(members.len() + 1);
         starts.push(0usize);
         for l in members {
-            starts.push(starts[starts.len() - 1] + l.len());
+            starts.push(starts[starts.len() - 1] + padded(l.len()));
         }
-        let mut values = vec![0.0f64; m * d];
-        let mut norms = vec![0.0f64; m];
+        let rows = starts[starts.len() - 1];
+        let mut order = vec![usize::MAX; rows];
+        let mut values = vec![0.0f64; rows * d];
+        let mut norms = vec![f64::INFINITY; rows];
         for (cell, list) in members.iter().enumerate() {
-            let (s, len) = (starts[cell], list.len());
+            let (s, len) = (starts[cell], padded(list.len()));
+            order[s..s + list.len()].copy_from_slice(list);
+            norms[s..s + list.len()].fill(0.0);
             let block = &mut values[s * d..(s + len) * d];
             for c in 0..d {
                 let col = reference.col(c);
                 for (t, &j) in list.iter().enumerate() {
                     let v = col[j];
-                    block[c * len + t] = v;
+                    block[(t / ROW_TILE) * ROW_TILE * d + c * ROW_TILE + t % ROW_TILE] = v;
                     norms[s + t] += v * v;
                 }
             }
@@ -225,55 +236,60 @@ impl CellBlocks {
 }
 
 /// The nearest row of Y, among the cells `cells` of [`CellBlocks`] `y`, of every query row of
-/// `q` (row-major, d values per row): the vertex j minimizing ‖r_j‖² − 2 q·r_j with the dot
-/// product summed over the columns in order, ties to the smallest vertex id — the exact search's
-/// rule, so the result equals [`nearest_neighbors`] among those rows. Vectorized across the rows
-/// of a cell (contiguous in every column of its block), [`QUERY_GROUP`] queries per pass over a
-/// block. A query with no candidate row gets `usize::MAX`.
+/// `q` (row-major, d values per row, padded with zero rows to a multiple of [`QUERY_TILE`];
+/// `qn` real rows): the vertex j minimizing ‖r_j‖² − 2 q·r_j with the dot product summed over
+/// the columns in order, ties to the smallest vertex id — the exact search's rule, so the result
+/// equals [`nearest_neighbors`] among those rows. A register tile of [`QUERY_TILE`] queries ×
+/// [`ROW_TILE`] rows is accumulated over all d columns (a small GEMM, vectorized across the
+/// rows). A query with no candidate row gets `usize::MAX`.
 struct NearestInCells<'a> {
     y: &'a CellBlocks,
     cells: &'a [usize],
     q: &'a [f64],
-    d: usize,
+    qn: usize,
 }
 
 impl pulp::WithSimd for NearestInCells<'_> {
     type Output = Vec<usize>;
 
-    // Plain loops, inlined into pulp's dispatch so that they are compiled once more with the
-    // CPU's vector instructions; separate multiplies and adds (Rust never fuses them), so every
-    // lane sums its dot product exactly as the scalar loop would.
+    // Inlined into pulp's dispatch, which compiles it for the CPU's widest vectors (AVX2:
+    // four f64 lanes); separate multiplies and adds (no fused multiply-add), so every lane sums
+    // its dot product exactly as the scalar loop would.
     #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _simd: S) -> Vec<usize> {
-        let NearestInCells { y, cells, q, d } = self;
-        let qn = q.len() / d.max(1);
-        let longest = cells.iter().map(|&c| y.starts[c + 1] - y.starts[c]).max().unwrap_or(0);
-        let mut acc = vec![0.0f64; QUERY_GROUP * longest];
+    fn with_simd<S: pulp::Simd>(self, simd: S) -> Vec<usize> {
+        let NearestInCells { y, cells, q, qn } = self;
+        let d = y.d;
+        // Vectors per tile row (ROW_TILE is a multiple of every lane count, 1 to 8).
+        let nv = ROW_TILE / S::F64_LANES;
+        let zero = simd.splat_f64s(0.0);
         let mut best = vec![(f64::INFINITY, usize::MAX); qn];
+        let mut dots = [0.0f64; ROW_TILE];
         for &cell in cells {
             let (s, len) = (y.starts[cell], y.starts[cell + 1] - y.starts[cell]);
-            if len == 0 {
-                continue;
-            }
-            let block = &y.values[s * y.d..(s + len) * y.d];
-            for g0 in (0..qn).step_by(QUERY_GROUP) {
-                let g = QUERY_GROUP.min(qn - g0);
-                let acc = &mut acc[..g * len];
-                acc.fill(0.0);
-                for (c, col) in block.chunks_exact(len).enumerate() {
-                    for (a, dots) in acc.chunks_exact_mut(len).enumerate() {
-                        let qc = q[(g0 + a) * d + c];
-                        for (x, &r) in dots.iter_mut().zip(col) {
-                            *x += qc * r;
+            let block = &y.values[s * d..(s + len) * d];
+            for t0 in (0..len).step_by(ROW_TILE) {
+                // One strip of ROW_TILE rows × d (in L1 while every query passes over it).
+                let strip = &block[t0 * d..(t0 + ROW_TILE) * d];
+                for g0 in (0..qn).step_by(QUERY_TILE) {
+                    let tile: [&[f64]; QUERY_TILE] = std::array::from_fn(|a| &q[(g0 + a) * d..(g0 + a + 1) * d]);
+                    let mut acc = [[zero; ROW_TILE]; QUERY_TILE];
+                    for (c, rows) in strip.chunks_exact(ROW_TILE).enumerate() {
+                        let (col, _) = S::as_simd_f64s(rows);
+                        for (sums, row) in acc.iter_mut().zip(&tile) {
+                            let qc = simd.splat_f64s(row[c]);
+                            for (x, &r) in sums[..nv].iter_mut().zip(col) {
+                                *x = simd.add_f64s(*x, simd.mul_f64s(qc, r));
+                            }
                         }
                     }
-                }
-                for (a, dots) in acc.chunks_exact(len).enumerate() {
-                    let b = &mut best[g0 + a];
-                    for (t, &dot) in dots.iter().enumerate() {
-                        let (dist, j) = (y.norms[s + t] - 2.0 * dot, y.order[s + t]);
-                        if dist < b.0 || (dist == b.0 && j < b.1) {
-                            *b = (dist, j);
+                    for (a, sums) in acc.iter().enumerate().take(qn - g0) {
+                        S::as_mut_simd_f64s(&mut dots).0.copy_from_slice(&sums[..nv]);
+                        let b = &mut best[g0 + a];
+                        for (l, &dot) in dots.iter().enumerate() {
+                            let (dist, j) = (y.norms[s + t0 + l] - 2.0 * dot, y.order[s + t0 + l]);
+                            if dist < b.0 || (dist == b.0 && j < b.1) {
+                                *b = (dist, j);
+                            }
                         }
                     }
                 }
@@ -681,6 +697,38 @@ mod tests {
         assert!(zoomout(a.as_ref(), a.as_ref(), &[1.0; 5], i2.as_ref(), &bad).is_err());
         let ok = ZoomOutOptions { k_final: 3, step: 1 };
         assert!(zoomout(a.as_ref(), a.as_ref(), &[1.0; 4], i2.as_ref(), &ok).is_err());
+    }
+
+    /// With every cell of Y searched, the restricted search is the exact one, ties included:
+    /// coarse integer embeddings (many equal distances) in dimensions that leave partial
+    /// register tiles (1, 7, 33 columns; cells of every size; query groups not a multiple of 4).
+    #[test]
+    fn restricted_search_with_every_cell_is_the_exact_search_ties_included() {
+        let x = crate::primitives::icosphere(2);
+        let p = x.vertices().to_vec();
+        let n = p.len();
+        let mut rng = crate::rng::Normal::new(3);
+        for d in [1, 7, 33] {
+            let mut coarse_value = || (rng.sample() * 1.5).round();
+            let reference = Mat::from_fn(n, d, |_, _| coarse_value());
+            let query = Mat::from_fn(n, d, |_, _| coarse_value());
+            let exact = nearest_neighbors(reference.as_ref(), query.as_ref()).unwrap();
+            let mass = vec![1.0; n];
+            let sx = crate::spatial::farthest_point_samples(&p, &mass, 13).unwrap().vertices;
+            let sy = crate::spatial::farthest_point_samples(&p, &mass, 11).unwrap().vertices;
+            let images: Vec<usize> = sx.iter().map(|&s| (s * 5) % n).collect();
+            let coarse = CoarseMap { x: &p, y: &p, samples: &sx, images: &images, y_cells: &sy };
+            let near = nearest_neighbors_near(reference.as_ref(), query.as_ref(), &coarse, sy.len()).unwrap();
+            assert_eq!(near, exact, "d = {d}");
+        }
+        // A non-finite embedding value is an error, as in the exact search.
+        let mut reference = Mat::from_fn(n, 3, |i, c| p[i][c]);
+        reference[(5, 1)] = f64::NAN;
+        let mass = vec![1.0; n];
+        let s = crate::spatial::farthest_point_samples(&p, &mass, 10).unwrap().vertices;
+        let coarse = CoarseMap { x: &p, y: &p, samples: &s, images: &s, y_cells: &s };
+        let query = Mat::from_fn(n, 3, |i, c| p[i][c]);
+        assert!(nearest_neighbors_near(reference.as_ref(), query.as_ref(), &coarse, 4).is_err());
     }
 
     /// The search near a coarse map equals the exact search when the coarse map is right (a
