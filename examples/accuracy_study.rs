@@ -18,7 +18,8 @@
 //! `zs=S` its step, `ns=N` its samples, `zp=K` probe size, `bij=W` the bijective ZoomOut with
 //! bijectivity weight W instead of ZoomOut, `pol=N` rounds of the bijective polish (0 none),
 //! `bs=N` samples of the basin search (0: none, candidates by edge distortion), `br=N` its
-//! correction rounds, `banch=N` its anchors on Y.
+//! correction rounds, `banch=N` its anchors on Y, `near=P` the vertex pairs n·m above which the
+//! searches are restricted near the samples' map (`--near-above`), `nc=N` its cells.
 //!
 //! Landmarks (issue 28, `funcorr match --landmarks`): `lm=N` gives the pipeline N ground-truth
 //! pairs, the farthest-point samples (Euclidean, on X) of the template points starting from the
@@ -146,6 +147,8 @@ impl Variant {
                 "bs" => a.search.samples = u(),
                 "br" => a.search.rounds = u(),
                 "banch" => a.search.anchors = u(),
+                "near" => a.near.above_pairs = val.parse().expect("integer"),
+                "nc" => a.near.cells = u(),
                 "nd" => nd = u(),
                 "kd" => kd = u(),
                 "ss" => ss = u(),

@@ -319,6 +319,45 @@ mod tests {
         assert_eq!(g.pair_distances_capped(&[(0, 5), (3, 4)], &[2.0, 2.0]).unwrap(), vec![2.0, 1.0]);
     }
 
+    /// Early-stopped runs (many targets per source, repeated targets, caps below, at and above
+    /// the distances, the source among its targets, a second component) give what a full run
+    /// from each source gives: d(s, t).min(cap). On a 642-vertex sphere plus a disconnected
+    /// edge, the same work buffers reused across sources (one rayon worker per group).
+    #[test]
+    fn stopped_runs_equal_full_runs() {
+        let mesh = icosphere(3);
+        let n = mesh.n_vertices();
+        let mut edges: Vec<(usize, usize, f64)> = Vec::new();
+        for f in mesh.faces() {
+            for (a, b) in [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])] {
+                let (a, b) = (a as usize, b as usize);
+                let (p, q) = (mesh.vertices()[a], mesh.vertices()[b]);
+                edges.push((a, b, (0..3).map(|c| (p[c] - q[c]).powi(2)).sum::<f64>().sqrt()));
+            }
+        }
+        edges.push((n, n + 1, 1.0));
+        let g = GraphGeodesics::from_edges(n + 2, &edges).unwrap();
+        let mut pairs = Vec::new();
+        let mut caps = Vec::new();
+        for s in [0, 7, 100, n] {
+            for t in (0..n + 2).step_by(13).chain([s, 5, 5, n + 1]) {
+                pairs.push((s, t));
+                caps.push(match pairs.len() % 4 {
+                    0 => f64::INFINITY,
+                    1 => 0.5,
+                    2 => 1.0,
+                    _ => 2.5,
+                });
+            }
+        }
+        let got = g.pair_distances_capped(&pairs, &caps).unwrap();
+        for ((&(s, t), &cap), &d) in pairs.iter().zip(&caps).zip(&got) {
+            let full = g.distances_from_vertex(s).unwrap()[t].min(cap);
+            assert_eq!(d, full, "d({s}, {t}) with cap {cap}");
+        }
+        assert!(got.iter().any(|d| d.is_infinite()) && got.iter().any(|&d| d > 0.0 && d < 0.5));
+    }
+
     #[test]
     fn disconnected_and_bad_inputs() {
         let g = GraphGeodesics::from_edges(4, &[(0, 1, 1.0), (2, 3, 1.0)]).unwrap();
