@@ -41,7 +41,52 @@ pub(crate) fn knn3(points: &[[f64; 3]], k: usize) -> Vec<Vec<(f64, usize)>> {
 pub fn nearest3(points: &[[f64; 3]], queries: &[[f64; 3]]) -> Vec<usize> {
     let tree: kiddo::ImmutableKdTree<f64, 3> = kiddo::ImmutableKdTree::new_from_slice(points);
     let one = NonZero::new(1).expect("1 > 0");
-    queries.iter().map(|q| tree.nearest_n::<kiddo::SquaredEuclidean>(q, one)[0].item as usize).collect()
+    queries.par_iter().map(|q| tree.nearest_n::<kiddo::SquaredEuclidean>(q, one)[0].item as usize).collect()
+}
+
+/// About `count` well-spread points of a surface sampled by `points` (n × 3), in O(n) per
+/// pass: one point per occupied cube of a voxel grid (the one nearest the cube's centre, ties to
+/// the smallest index), the cube's side adjusted (at most 8 passes) until the occupied cubes
+/// number within ×1.25 of `count`. Returns point indices, ascending; every point when `count`
+/// ≥ n. Where farthest-point sampling (O(n · count)) is too slow: the fine cells of restricted
+/// searches on 10⁵–10⁶ points. `points` must be finite (the shapes' positions are).
+pub fn grid_samples(points: &[[f64; 3]], count: usize) -> Vec<usize> {
+    let n = points.len();
+    if count >= n || n == 0 {
+        return (0..n).collect();
+    }
+    let count = count.max(1);
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for p in points {
+        for c in 0..3 {
+            lo[c] = lo[c].min(p[c]);
+            hi[c] = hi[c].max(p[c]);
+        }
+    }
+    let e: Vec<f64> = (0..3).map(|c| (hi[c] - lo[c]).max(f64::MIN_POSITIVE)).collect();
+    // A surface's area is of the order of the box's half surface: a first side length.
+    let mut side = ((e[0] * e[1] + e[1] * e[2] + e[2] * e[0]) / count as f64).sqrt().max(f64::MIN_POSITIVE);
+    let key = |p: &[f64; 3], side: f64| -> [i64; 3] { std::array::from_fn(|c| ((p[c] - lo[c]) / side).floor() as i64) };
+    let mut best: std::collections::HashMap<[i64; 3], (f64, usize)> = std::collections::HashMap::new();
+    for _ in 0..8 {
+        best.clear();
+        for (i, p) in points.iter().enumerate() {
+            let k = key(p, side);
+            let d: f64 = (0..3).map(|c| (p[c] - (lo[c] + (k[c] as f64 + 0.5) * side)).powi(2)).sum();
+            let e = best.entry(k).or_insert((f64::INFINITY, usize::MAX));
+            if d < e.0 || (d == e.0 && i < e.1) {
+                *e = (d, i);
+            }
+        }
+        let ratio = best.len() as f64 / count as f64;
+        if (0.8..=1.25).contains(&ratio) {
+            break;
+        }
+        side *= ratio.sqrt();
+    }
+    let mut chosen: Vec<usize> = best.values().map(|&(_, i)| i).collect();
+    chosen.sort_unstable();
+    chosen
 }
 
 /// For every query point, the indices of the `k` nearest of `points` (Euclidean, by a k-d tree),
@@ -409,6 +454,33 @@ pub fn max_inner_rows(reference: MatRef<f64>, query: MatRef<f64>) -> Result<Vec<
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The grid samples of a 10,242-vertex sphere: near the asked count, ascending and
+    /// distinct, and covering the sphere (every vertex within three sample spacings of one).
+    #[test]
+    fn grid_samples_cover_the_surface() {
+        let p = crate::primitives::icosphere(5).vertices().to_vec();
+        for count in [50, 500, 3000] {
+            let s = grid_samples(&p, count);
+            assert!(
+                s.len() as f64 >= 0.8 * count as f64 && s.len() as f64 <= 1.25 * count as f64,
+                "{count}: {}",
+                s.len()
+            );
+            assert!(s.windows(2).all(|w| w[0] < w[1]));
+            let spacing = (4.0 * std::f64::consts::PI / s.len() as f64).sqrt();
+            let chosen: Vec<[f64; 3]> = s.iter().map(|&i| p[i]).collect();
+            let nearest = nearest3(&chosen, &p);
+            let far = p
+                .iter()
+                .zip(&nearest)
+                .map(|(a, &t)| (0..3).map(|c| (a[c] - chosen[t][c]).powi(2)).sum::<f64>().sqrt())
+                .fold(0.0, f64::max);
+            assert!(far < 3.0 * spacing, "{count}: a vertex {far} from every sample (spacing {spacing})");
+        }
+        assert_eq!(grid_samples(&p[..10], 20), (0..10).collect::<Vec<_>>());
+        assert!(grid_samples(&[], 5).is_empty());
+    }
 
     #[test]
     fn farthest_points_spread_out() {

@@ -5,10 +5,10 @@
 use faer::{Mat, MatRef, Side};
 use serde::{Deserialize, Serialize};
 
-use super::pullback::{sample_images_near, Near, Scope};
+use super::pullback::{rows_near, sample_images_near, Near, Scope};
 use crate::error::{Error, Result};
 use crate::linalg::mul;
-use crate::pointwise::{nearest_neighbors, nearest_neighbors_near, CoarseMap};
+use crate::pointwise::nearest_neighbors;
 use crate::spatial::Samples;
 
 /// Options of [`bijective_zoomout`].
@@ -145,8 +145,8 @@ fn bijective_map_near(
     let (all_x, all_y): (Vec<usize>, Vec<usize>) = ((0..phi.nrows()).collect(), (0..psi.nrows()).collect());
     let (reference, query) = bijective_embeddings(phi, psi, c_yx, c_xy, w, &all_x, &all_y);
     let images = sample_images_near(reference.as_ref(), query.as_ref(), sx, y_cells, near)?;
-    let coarse = CoarseMap { x: near.x, y: near.y, samples: sx, images: &images, y_cells };
-    nearest_neighbors_near(reference.as_ref(), query.as_ref(), &coarse, near.cells)
+    let all: Vec<usize> = (0..phi.nrows()).collect();
+    rows_near(reference.as_ref(), query.as_ref(), near, (sx, &images, y_cells), &all)
 }
 
 /// Pins ([`bijective_polish_pinned`]) as positions in the samples of both shapes: (position in

@@ -135,7 +135,6 @@ pub fn map_of_pullback(
         Scope::Near { near, x_cells, y_cells } => {
             let query = phi.subcols(0, kx);
             let images = sample_images_near(reference.as_ref(), query, x_cells, y_cells, near)?;
-            let coarse = CoarseMap { x: near.x, y: near.y, samples: x_cells, images: &images, y_cells };
             let all: Vec<usize>;
             let rows = match rows {
                 Some(r) => r,
@@ -144,7 +143,7 @@ pub fn map_of_pullback(
                     &all
                 }
             };
-            nearest_neighbors_near_rows(reference.as_ref(), query, &coarse, near.cells, rows)
+            rows_near(reference.as_ref(), query, near, (x_cells, &images, y_cells), rows)
         }
     }
 }
@@ -166,11 +165,54 @@ pub fn map_yx_of_pullback(phi: MatRef<f64>, psi: MatRef<f64>, c_yx: MatRef<f64>,
         Scope::Near { near, x_cells, y_cells } => {
             let (query, back) = (psi.subcols(0, ky), near.reversed());
             let images = sample_images_near(reference.as_ref(), query, y_cells, x_cells, &back)?;
-            let coarse = CoarseMap { x: back.x, y: back.y, samples: y_cells, images: &images, y_cells: x_cells };
             let all: Vec<usize> = (0..psi.nrows()).collect();
-            nearest_neighbors_near_rows(reference.as_ref(), query, &coarse, back.cells, &all)
+            rows_near(reference.as_ref(), query, &back, (y_cells, &images, x_cells), &all)
         }
     }
+}
+
+/// Vertices per cell of the finer levels of [`rows_near`].
+const FINE_CELL: usize = 32;
+
+/// [`rows_near`] adds a level while the cells of Y hold more than this many times
+/// [`FINE_CELL`] vertices on average (and there are this many times more query rows than cells
+/// of X).
+const LEVEL_ABOVE: usize = 4;
+
+/// The cells of a level of [`rows_near`] grow at most this many times from the level before.
+const LEVEL_GROWTH: usize = 16;
+
+/// The images of the query rows `rows` of X near the map `images` of the cells `x_cells` of X
+/// among the cells `y_cells` of Y ([`crate::pointwise::nearest_neighbors_near_rows`] with
+/// `near.cells` cells), through finer levels where the cells are large: while Y's cells hold on
+/// average more than [`LEVEL_ABOVE`] × [`FINE_CELL`] vertices, up to [`LEVEL_GROWTH`] times more
+/// cells on each shape ([`crate::spatial::grid_samples`], at most n / [`FINE_CELL`] and
+/// m / [`FINE_CELL`]) are matched near the current level first, and become the cells of the
+/// next. The cells searched per query then stay small as m grows (O(cells · FINE_CELL) rows
+/// instead of O(cells · m / #y_cells)); each level's samples get exactly the images the
+/// one-level search would give them. No level is added on pairs of ≲ 10⁵ vertices with the
+/// default 2,000 cells (52k: 26 vertices per cell).
+pub(crate) fn rows_near(
+    reference: MatRef<f64>,
+    query: MatRef<f64>,
+    near: &Near,
+    (x_cells, images, y_cells): (&[usize], &[usize], &[usize]),
+    rows: &[usize],
+) -> Result<Vec<usize>> {
+    let (n, m) = (near.x.len(), near.y.len());
+    let (mut xs, mut im, mut ys) = (x_cells.to_vec(), images.to_vec(), y_cells.to_vec());
+    while m > LEVEL_ABOVE * FINE_CELL * ys.len().max(1) && rows.len() > LEVEL_ABOVE * xs.len() {
+        let fx = crate::spatial::grid_samples(near.x, (xs.len() * LEVEL_GROWTH).min(n / FINE_CELL));
+        let fy = crate::spatial::grid_samples(near.y, (ys.len() * LEVEL_GROWTH).min(m / FINE_CELL));
+        if fx.len() <= xs.len() || fy.len() <= ys.len() {
+            break;
+        }
+        let coarse = CoarseMap { x: near.x, y: near.y, samples: &xs, images: &im, y_cells: &ys };
+        im = nearest_neighbors_near_rows(reference, query, &coarse, near.cells, &fx)?;
+        (xs, ys) = (fx, fy);
+    }
+    let coarse = CoarseMap { x: near.x, y: near.y, samples: &xs, images: &im, y_cells: &ys };
+    nearest_neighbors_near_rows(reference, query, &coarse, near.cells, rows)
 }
 
 /// The nearest reference row (rows of Y, `reference` m × d) of every sample `sx` of X (rows of
