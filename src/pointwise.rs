@@ -520,7 +520,7 @@ pub fn zoomout(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::spectral::Normal;
 
@@ -748,14 +748,17 @@ mod tests {
         assert!(nearest_neighbors_near(reference.as_ref(), query.as_ref(), &coarse, 4).is_err());
     }
 
-    /// The search near a coarse map equals the exact search when the coarse map is right (a
-    /// 2562-vertex sphere and a renumbered copy, 6-D embeddings with noise, 100 samples, 8
-    /// cells), and differs from it when the coarse map is wrong (so the restriction is real).
-    #[test]
-    fn search_near_a_coarse_map_equals_the_exact_search() {
-        let x = crate::primitives::bumpy_sphere(4);
+    /// The restricted searches' test case: a mesh X, a renumbered copy Y (Y vertex j is X vertex
+    /// (7919 j + 11) mod n), the true map X → Y, and 6-D embeddings of both (the positions and
+    /// their pairwise products; Y's with Gaussian noise of standard deviation `noise`, seed 5).
+    /// Returns (X's positions, Y's positions, the true map, query n × 6, reference n × 6).
+    #[allow(clippy::type_complexity)]
+    pub(crate) fn renumbered_embeddings(
+        x: &crate::shape::TriMesh,
+        noise: f64,
+    ) -> (Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<usize>, Mat<f64>, Mat<f64>) {
         let n = x.n_vertices();
-        let perm: Vec<usize> = (0..n).map(|i| (i * 7919 + 11) % n).collect(); // Y vertex j is X vertex perm[j]
+        let perm: Vec<usize> = (0..n).map(|i| (i * 7919 + 11) % n).collect();
         let mut truth = vec![0usize; n];
         for (j, &i) in perm.iter().enumerate() {
             truth[i] = j;
@@ -765,7 +768,18 @@ mod tests {
         let features = |p: &[f64; 3]| [p[0], p[1], p[2], p[0] * p[1], p[1] * p[2], p[2] * p[0]];
         let mut rng = crate::rng::Normal::new(5);
         let query = Mat::from_fn(n, 6, |i, c| features(&px[i])[c]);
-        let reference = Mat::from_fn(n, 6, |j, c| features(&py[j])[c] + 0.02 * rng.sample());
+        let reference = Mat::from_fn(n, 6, |j, c| features(&py[j])[c] + noise * rng.sample());
+        (px, py, truth, query, reference)
+    }
+
+    /// The search near a coarse map equals the exact search when the coarse map is right (a
+    /// 2562-vertex sphere and a renumbered copy, 6-D embeddings with noise, 100 samples, 8
+    /// cells), and differs from it when the coarse map is wrong (so the restriction is real).
+    #[test]
+    fn search_near_a_coarse_map_equals_the_exact_search() {
+        let x = crate::primitives::bumpy_sphere(4);
+        let n = x.n_vertices();
+        let (px, py, truth, query, reference) = renumbered_embeddings(&x, 0.02);
         let exact = nearest_neighbors(reference.as_ref(), query.as_ref()).unwrap();
         let mass = vec![1.0; n];
         let sx = crate::spatial::farthest_point_samples(&px, &mass, 100).unwrap().vertices;

@@ -128,17 +128,7 @@ fn finer_levels_keep_the_exact_map() {
     use crate::pointwise::{nearest_neighbors, nearest_neighbors_near_rows, CoarseMap};
     let x = crate::primitives::icosphere(5);
     let n = x.n_vertices();
-    let perm: Vec<usize> = (0..n).map(|i| (i * 7919 + 11) % n).collect(); // Y vertex j is X vertex perm[j]
-    let mut truth = vec![0usize; n];
-    for (j, &i) in perm.iter().enumerate() {
-        truth[i] = j;
-    }
-    let px = x.vertices().to_vec();
-    let py: Vec<[f64; 3]> = perm.iter().map(|&i| px[i]).collect();
-    let features = |p: &[f64; 3]| [p[0], p[1], p[2], p[0] * p[1], p[1] * p[2], p[2] * p[0]];
-    let mut rng = crate::rng::Normal::new(5);
-    let query = Mat::from_fn(n, 6, |i, c| features(&px[i])[c]);
-    let reference = Mat::from_fn(n, 6, |j, c| features(&py[j])[c] + 0.002 * rng.sample());
+    let (px, py, truth, query, reference) = crate::pointwise::tests::renumbered_embeddings(&x, 0.002);
     let exact = nearest_neighbors(reference.as_ref(), query.as_ref()).unwrap();
     let mass = vec![1.0; n];
     let sx = farthest_point_samples(&px, &mass, 10).unwrap().vertices;
