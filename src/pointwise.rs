@@ -73,10 +73,6 @@ pub fn nearest_neighbors_near(
     nearest_neighbors_near_rows(reference, query, coarse, cells, &all)
 }
 
-/// The largest embedding value [`nearest_neighbors_near_rows`] accepts (that of the exact search,
-/// [`nearest_neighbors`]).
-const MAX_EMBEDDING: f64 = 1e30;
-
 /// [`nearest_neighbors_near`] for the query rows `rows` only (vertex ids of X, any order,
 /// repeats allowed): returns the image of each, in the order of `rows`. Costs O(|rows| · cells ·
 /// m / #cells · d) plus the cells of Y; used where a point map is needed on part of X only (the
@@ -145,7 +141,7 @@ pub fn nearest_neighbors_near_rows(
     // within the block, so the kernel below streams a cell's rows with no gather and no
     // stride of m between columns.
     let cells_y = CellBlocks::new(reference, &y_members);
-    let usable = |v: f64| v.is_finite() && v.abs() <= MAX_EMBEDDING;
+    let usable = |v: f64| v.is_finite() && v.abs() <= crate::spatial::MAX_EMBEDDING;
     let rows_usable = (0..d).all(|c| rows.iter().all(|&i| usable(query[(i, c)])));
     if !rows_usable || !cells_y.values.iter().all(|&v| usable(v)) {
         return Err(Error::invalid("embedding", "it contains a non-finite value or one beyond 1e30 in magnitude"));
@@ -186,9 +182,9 @@ pub fn nearest_neighbors_near_rows(
 /// of padded row t (ascending within a cell; `usize::MAX` for padding), stored in one block of
 /// `values` from `starts[c] · d`, in tiles of [`ROW_TILE`] rows, each tile column-major (entry
 /// (t, col) of a cell at `starts[c] · d + ⌊t / ROW_TILE⌋ · ROW_TILE · d + col · ROW_TILE + t mod
-/// ROW_TILE`: a tile is one contiguous strip, read in order by the kernel), with the squared norms `norms[t]`
-/// (summed over the columns in order, as the exact search sums them; +∞ for padding, so a
-/// padding row is never nearest).
+/// ROW_TILE`: a tile is one contiguous strip, read in order by the kernel), with the squared
+/// norms `norms[t]` (summed over the columns in order, as the exact search sums them; +∞ for
+/// padding, so a padding row is never nearest).
 struct CellBlocks {
     order: Vec<usize>,
     starts: Vec<usize>,

@@ -293,6 +293,11 @@ pub fn farthest_point_samples(points: &[[f64; 3]], mass: &[f64], count: usize) -
     Ok(Samples { vertices: chosen, weights })
 }
 
+/// The largest embedding value the nearest-neighbour searches accept (beyond it the exact
+/// search's single-precision screen overflows); [`crate::pointwise::nearest_neighbors_near_rows`]
+/// holds its input to the same bound.
+pub(crate) const MAX_EMBEDDING: f64 = 1e30;
+
 /// Query rows per task of the nearest-neighbour search.
 const QUERY_BLOCK: usize = 256;
 
@@ -336,7 +341,7 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
     // Values beyond f32's range cannot be screened in single precision.
     let max_abs =
         |x: MatRef<f64>| (0..x.ncols()).flat_map(|j| (0..x.nrows()).map(move |i| x[(i, j)].abs())).fold(0.0, f64::max);
-    if max_abs(reference).max(max_abs(query)) > 1e30 {
+    if max_abs(reference).max(max_abs(query)) > MAX_EMBEDDING {
         return Err(Error::invalid("embedding", "a value exceeds 1e30 in magnitude"));
     }
     let row_sq = |x: MatRef<f64>, j: usize| (0..d).map(|c| x[(j, c)].powi(2)).sum::<f64>();
