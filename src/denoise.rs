@@ -37,8 +37,7 @@
 //! alone: it costs 1.34× the clean error there (24 pairs), within the 2×, and no clean
 //! shape can be told from it by this measure (shapes cut by a plane reach 0.040).
 
-use faer::linalg::solvers::Solve;
-use faer::{Mat, Side};
+use faer::Mat;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
@@ -107,21 +106,9 @@ fn step_positions(mesh: &TriMesh, lap: &Laplacian, t: f64) -> Result<Vec<[f64; 3
     if lap.n() != n {
         return Err(Error::invalid("laplacian", format!("it has {} vertices, the mesh {n}", lap.n())));
     }
-    let mut m = lap.w.clone();
-    let sym = lap.w.symbolic();
-    let (cp, ri) = (sym.col_ptr().to_vec(), sym.row_idx().to_vec());
-    let vals = m.val_mut();
-    for c in 0..n {
-        for p in cp[c]..cp[c + 1] {
-            vals[p] *= t;
-            if ri[p] == c {
-                vals[p] += lap.mass[c];
-            }
-        }
-    }
-    let llt = m
-        .sp_cholesky(Side::Lower)
-        .map_err(|e| Error::numerical("smoothing", format!("factorization of A + tW failed: {e:?}")))?;
+    let llt =
+        crate::cholesky::SparseLlt::new(crate::cholesky::combination(lap, t, 1.0).as_ref(), lap.symbolic_cholesky()?)
+            .map_err(|e| Error::numerical("smoothing", format!("factorization of A + tW failed: {e}")))?;
     let v = mesh.vertices();
     let mut p = Mat::from_fn(n, 3, |i, d| lap.mass[i] * v[i][d]);
     llt.solve_in_place(p.as_mut());
@@ -140,8 +127,15 @@ pub fn roughness(mesh: &TriMesh) -> Result<f64> {
     // The Laplacian first: its errors name what is wrong with a degenerate mesh (zero total
     // area, underflow, a vertex in no triangle).
     let lap = laplacian::cotangent(mesh)?;
+    roughness_with(mesh, &lap)
+}
+
+/// [`roughness`] with the mesh's cotangent Laplacian `cotan` (n × n, from
+/// [`crate::laplacian::cotangent`]) already built; the probe's factorization reuses the
+/// symbolic analysis cached on `cotan` (which the eigensolver then reuses in turn).
+pub fn roughness_with(mesh: &TriMesh, cotan: &Laplacian) -> Result<f64> {
     let (h, area) = scales(mesh)?;
-    let probe = smooth_step(mesh, &lap, PROBE_TIME * h * h)?;
+    let probe = smooth_step(mesh, cotan, PROBE_TIME * h * h)?;
     Ok((1.0 - probe.total_area() / area).max(0.0))
 }
 
@@ -211,7 +205,13 @@ pub fn smoothing_time(mesh: &TriMesh, lap: &Laplacian, target: f64) -> Result<(f
 /// Errors: those of [`roughness`] and [`smooth_step`], and a smoothed mesh with more folded
 /// faces than the input ([`folded_faces`]: the step would have damaged the triangles).
 pub fn denoise(mesh: &TriMesh) -> Result<(Option<Denoised>, f64)> {
-    let before = roughness(mesh)?;
+    denoise_with(mesh, &laplacian::cotangent(mesh)?)
+}
+
+/// [`denoise`] with the mesh's cotangent Laplacian `cotan` (n × n) already built: a clean
+/// mesh's caller keeps it as the shape's Laplacian, so it is assembled once.
+pub fn denoise_with(mesh: &TriMesh, cotan: &Laplacian) -> Result<(Option<Denoised>, f64)> {
+    let before = roughness_with(mesh, cotan)?;
     if before <= NOISY_ROUGHNESS {
         return Ok((None, before));
     }

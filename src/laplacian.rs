@@ -11,6 +11,9 @@
 //!   in [`crate::cloud::cloud_laplacian`] (above this module: it needs the cloud's surface),
 //!   from [`cotangent`] of the cloud's triangle soup, as [`LaplacianKind::PointCloud`].
 
+use std::sync::{Arc, Mutex};
+
+use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use rayon::prelude::*;
 
@@ -80,9 +83,86 @@ pub struct Laplacian {
     pub mass: Vec<f64>,
     /// How it was built.
     pub kind: LaplacianKind,
+    /// The symbolic Cholesky factorization of W's pattern, computed on first use
+    /// ([`Laplacian::symbolic_cholesky`]).
+    pub(crate) symbolic: SymbolicCache,
+}
+
+/// A cached symbolic Cholesky factorization with the hash of the pattern it was computed from
+/// (W's fields are public: a pattern changed after the first use is detected and analysed
+/// again, never factored with a stale ordering).
+#[derive(Default)]
+pub(crate) struct SymbolicCache(Mutex<Option<(u64, Arc<SymbolicCholesky<usize>>)>>);
+
+impl Clone for SymbolicCache {
+    fn clone(&self) -> Self {
+        SymbolicCache(Mutex::new(self.0.lock().unwrap_or_else(|e| e.into_inner()).clone()))
+    }
+}
+
+impl std::fmt::Debug for SymbolicCache {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let cached = self.0.lock().map(|g| g.is_some()).unwrap_or(false);
+        write!(f, "SymbolicCache {{ cached: {cached} }}")
+    }
+}
+
+/// FNV-1a, 64 bits, a stable hash (std's hashers may change between Rust releases): the hash of W's pattern ([`Laplacian::symbolic_cholesky`]) and of a
+/// whole Laplacian (the basis cache's key, [`crate::spectral::BasisCache::key`]).
+pub(crate) struct Fnv(pub(crate) u64);
+
+impl Fnv {
+    pub(crate) fn new() -> Self {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+
+    pub(crate) fn write(&mut self, bytes: &[u8]) {
+        for b in bytes {
+            self.0 ^= u64::from(*b);
+            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+
+    /// Hashes n, then the column pointers and row indices of W's pattern (each as u64 LE).
+    pub(crate) fn write_pattern(&mut self, lap: &Laplacian) {
+        let sym = lap.w.symbolic();
+        self.write(&(lap.n() as u64).to_le_bytes());
+        for &x in sym.col_ptr().iter().chain(sym.row_idx()) {
+            self.write(&(x as u64).to_le_bytes());
+        }
+    }
 }
 
 impl Laplacian {
+    /// A Laplacian from its stiffness matrix W (n × n, symmetric, every diagonal entry stored),
+    /// vertex weights A (length n) and kind.
+    pub fn new(w: SparseColMat<usize, f64>, mass: Vec<f64>, kind: LaplacianKind) -> Self {
+        Laplacian { w, mass, kind, symbolic: SymbolicCache::default() }
+    }
+
+    /// The AMD ordering and supernodal symbolic Cholesky factorization of W's pattern, shared
+    /// by every numeric factorization of W + cA or A + tW ([`crate::cholesky`]); computed once.
+    pub(crate) fn symbolic_cholesky(&self) -> Result<Arc<SymbolicCholesky<usize>>> {
+        let mut h = Fnv::new();
+        h.write_pattern(self);
+        let hash = h.0;
+        let mut slot = self.symbolic.0.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((h, s)) = slot.as_ref() {
+            if *h == hash {
+                return Ok(s.clone());
+            }
+        }
+        let s = crate::cholesky::symbolic_of(self.w.as_ref())?;
+        *slot = Some((hash, s.clone()));
+        Ok(s)
+    }
+
+    /// The same Laplacian with other vertex weights (length n), sharing the cached symbolic
+    /// factorization (the pattern is W's).
+    pub(crate) fn with_mass(&self, mass: Vec<f64>) -> Self {
+        Laplacian { w: self.w.clone(), mass, kind: self.kind, symbolic: self.symbolic.clone() }
+    }
+
     /// Number of vertices n.
     pub fn n(&self) -> usize {
         self.mass.len()
@@ -268,7 +348,7 @@ pub(crate) fn cotangent_from_lengths(
             ),
         ));
     }
-    Ok(Laplacian { w: assemble_symmetric(n, entries), mass, kind: LaplacianKind::Cotangent })
+    Ok(Laplacian::new(assemble_symmetric(n, entries), mass, LaplacianKind::Cotangent))
 }
 
 /// Laplacian of a graph given by weighted undirected edges `(i, j, w_ij)` (each edge once; w ≥ 0)
@@ -308,7 +388,7 @@ pub fn graph(n: usize, edges: &[(usize, usize, f64)], vertex_weights: VertexWeig
             degree
         }
     };
-    Ok(Laplacian { w: assemble_symmetric(n, entries), mass, kind: LaplacianKind::Graph })
+    Ok(Laplacian::new(assemble_symmetric(n, entries), mass, LaplacianKind::Graph))
 }
 
 /// Graph Laplacian of a point cloud or feature matrix (paper eq. (1)): the symmetric kNN graph
@@ -366,6 +446,25 @@ pub fn knn_graph(points: &PointSet, opts: &KnnOptions) -> Result<Laplacian> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The symbolic factorization is computed once and shared by clones and by the unit-area
+    /// copy; a pattern changed through the public field is analysed again.
+    #[test]
+    fn symbolic_cholesky_is_cached_and_follows_the_pattern() {
+        let lap = cotangent(&crate::primitives::icosphere(2)).unwrap();
+        let a = lap.symbolic_cholesky().unwrap();
+        assert!(Arc::ptr_eq(&a, &lap.symbolic_cholesky().unwrap()));
+        assert!(Arc::ptr_eq(&a, &lap.clone().symbolic_cholesky().unwrap()));
+        assert!(Arc::ptr_eq(&a, &lap.with_mass(vec![1.0; lap.n()]).symbolic_cholesky().unwrap()));
+        // Another pattern (a path graph on as many vertices) in the same Laplacian object.
+        let mut other = lap.clone();
+        other.w = graph(lap.n(), &(1..lap.n()).map(|i| (i - 1, i, 1.0)).collect::<Vec<_>>(), VertexWeights::Identity)
+            .unwrap()
+            .w;
+        let b = other.symbolic_cholesky().unwrap();
+        assert!(!Arc::ptr_eq(&a, &b));
+        assert_ne!(a.len_val(), b.len_val());
+    }
     use crate::shape::tests::square;
 
     #[test]

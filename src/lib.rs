@@ -20,6 +20,7 @@
 //! ```
 
 pub mod benchmark;
+pub(crate) mod cholesky;
 pub mod cloud;
 pub mod completion;
 pub mod denoise;

@@ -24,7 +24,7 @@ use std::sync::OnceLock;
 use serde::{Deserialize, Serialize};
 
 use crate::cloud::{cloud_laplacian, CloudSurface, DEFAULT_NEIGHBOURS};
-use crate::denoise::{denoise, Denoising};
+use crate::denoise::{denoise_with, Denoising};
 use crate::error::{Error, Result};
 use crate::laplacian::{self, KnnOptions, Laplacian};
 use crate::operators::FaceGradients;
@@ -238,10 +238,13 @@ pub fn build_laplacian(shape: &Shape, choice: LaplacianChoice) -> Result<(Laplac
         }
     };
     match (choice, shape) {
-        (LaplacianChoice::Auto, Shape::Mesh(m)) => match denoise(m)? {
-            (None, _) => Ok((laplacian::cotangent(m)?, Some(Surface::Mesh))),
-            (Some(d), _) => Ok((d.laplacian, Some(Surface::Denoised(d.mesh, d.report)))),
-        },
+        (LaplacianChoice::Auto, Shape::Mesh(m)) => {
+            let cotan = laplacian::cotangent(m)?;
+            match denoise_with(m, &cotan)? {
+                (None, _) => Ok((cotan, Some(Surface::Mesh))),
+                (Some(d), _) => Ok((d.laplacian, Some(Surface::Denoised(d.mesh, d.report)))),
+            }
+        }
         (LaplacianChoice::Cotangent, Shape::Mesh(m)) => Ok((laplacian::cotangent(m)?, Some(Surface::Mesh))),
         (LaplacianChoice::Intrinsic, Shape::Mesh(m)) => {
             Ok((crate::geodesic::intrinsic_delaunay_laplacian(m)?, Some(Surface::Mesh)))

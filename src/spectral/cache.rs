@@ -25,7 +25,7 @@ use faer::Mat;
 use super::Basis;
 use crate::error::{Error, Result};
 use crate::io::npy::{read_npz, write_npz, NpzArray};
-use crate::laplacian::Laplacian;
+use crate::laplacian::{Fnv, Laplacian};
 
 /// Writes `basis` to `path` as an uncompressed `.npz` (see the module documentation).
 pub fn save_basis(path: &Path, basis: &Basis) -> Result<()> {
@@ -110,18 +110,6 @@ pub struct BasisCache {
     dir: PathBuf,
 }
 
-/// FNV-1a, 64 bit: a stable hash (std's hashers may change between Rust releases).
-struct Fnv(u64);
-
-impl Fnv {
-    fn write(&mut self, bytes: &[u8]) {
-        for b in bytes {
-            self.0 ^= u64::from(*b);
-            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
-        }
-    }
-}
-
 impl BasisCache {
     /// A cache in `dir` (created on first write).
     pub fn new(dir: impl Into<PathBuf>) -> Self {
@@ -143,16 +131,9 @@ impl BasisCache {
 
     /// Key of a Laplacian: a hash of n, the sparsity pattern and values of W, and A.
     pub fn key(lap: &Laplacian) -> String {
-        let mut h = Fnv(0xcbf2_9ce4_8422_2325);
-        let w = lap.w.as_ref();
-        h.write(&(lap.n() as u64).to_le_bytes());
-        for &c in w.symbolic().col_ptr() {
-            h.write(&(c as u64).to_le_bytes());
-        }
-        for &r in w.symbolic().row_idx() {
-            h.write(&(r as u64).to_le_bytes());
-        }
-        for v in w.val().iter().chain(&lap.mass) {
+        let mut h = Fnv::new();
+        h.write_pattern(lap);
+        for v in lap.w.val().iter().chain(&lap.mass) {
             h.write(&v.to_bits().to_le_bytes());
         }
         format!("{:016x}", h.0)

@@ -6,22 +6,13 @@ use std::time::Instant;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::matmul::matmul;
 use faer::reborrow::{Reborrow, ReborrowMut};
-use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
-};
-use faer::sparse::linalg::SupernodalThreshold;
-use faer::sparse::SparseColMatRef;
-use faer::{Accum, Conj, Mat, MatMut, MatRef, Par, Side};
+use faer::{Accum, Mat, MatMut, MatRef, Par};
 
 use super::{relative_residuals, Normal, Progress, SolveInfo, SpectralOptions};
+use crate::cholesky::SparseLlt;
 use crate::error::{Error, Result};
 use crate::laplacian::Laplacian;
 use crate::linalg::{a_b_into, at_b_as_bt_a, RowChunks};
-
-/// Parallelism handed to faer for the one-off sparse factorization.
-fn par() -> Par {
-    Par::rayon(0)
-}
 
 // The Krylov basis is tall and skinny (n × p with p ≪ n) and the blocks are thin (b columns):
 // its products are `crate::linalg`'s row-chunked ones, with the chunking tuned for them.
@@ -39,51 +30,6 @@ fn ritz_eigen(h: MatRef<f64>) -> Result<(Vec<f64>, Mat<f64>)> {
     self_adjoint_evd(h, s.as_mut(), Some(u.as_mut()), Par::Seq, MemStack::new(&mut buf), Default::default())
         .map_err(|e| Error::numerical("eigensolver", format!("Ritz eigenproblem failed: {e:?}")))?;
     Ok(((0..p).map(|i| s[i]).collect(), u))
-}
-
-/// Sparse Cholesky factor L Lᵀ = P (W + sA) Pᵀ (AMD ordering), always *supernodal*: faer's
-/// automatic choice picks the simplicial variant for mesh Laplacians, whose triangular solves
-/// run one column at a time; the supernodal solves work on dense blocks with all b
-/// right-hand sides at once, which is what the block Lanczos method needs.
-struct SparseLlt {
-    symbolic: SymbolicCholesky<usize>,
-    values: Vec<f64>,
-}
-
-impl SparseLlt {
-    fn new(mat: SparseColMatRef<usize, f64>) -> std::result::Result<Self, String> {
-        let params = CholeskySymbolicParams {
-            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-            ..Default::default()
-        };
-        let symbolic = factorize_symbolic_cholesky(mat.symbolic(), Side::Lower, SymmetricOrdering::Amd, params)
-            .map_err(|e| format!("{e:?}"))?;
-        let mut values = vec![0.0; symbolic.len_val()];
-        let mut buf = MemBuffer::new(symbolic.factorize_numeric_llt_scratch::<f64>(par(), Default::default()));
-        symbolic
-            .factorize_numeric_llt(
-                &mut values,
-                mat,
-                Side::Lower,
-                Default::default(),
-                par(),
-                MemStack::new(&mut buf),
-                Default::default(),
-            )
-            .map_err(|e| format!("{e:?}"))?;
-        Ok(SparseLlt { symbolic, values })
-    }
-
-    /// x ← (W + sA)⁻¹ x for an n × b block.
-    fn solve_in_place(&self, x: MatMut<f64>) {
-        let mut buf = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(x.ncols(), Par::Seq));
-        LltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(
-            Conj::No,
-            x,
-            Par::Seq,
-            MemStack::new(&mut buf),
-        );
-    }
 }
 
 /// The shift-invert operator Op = A^{1/2} (W + sA)⁻¹ A^{1/2}.
@@ -111,37 +57,20 @@ fn scale_rows(mut x: MatMut<f64>, s: &[f64]) {
     }
 }
 
-/// Index into W's values of every diagonal entry (always stored, see
-/// [`crate::laplacian::Laplacian::w`]).
-fn diagonal_positions(lap: &Laplacian) -> Vec<usize> {
-    let sym = lap.w.symbolic();
-    (0..lap.n())
-        .map(|c| {
-            let start = sym.col_ptr()[c];
-            let rows = &sym.row_idx()[start..sym.col_ptr()[c + 1]];
-            start + rows.iter().position(|&r| r == c).expect("W stores its diagonal")
-        })
-        .collect()
-}
-
 /// Factors W + sA with a shift s > 0 small against the low end of the spectrum. s starts at
 /// 1e-6 · tr(W)/tr(A) (tr(W)/tr(A) is the mean of the spectrum, so s is far below the
 /// eigenvalues we want on any mesh or graph of more than a few hundred vertices, yet keeps the
 /// matrix safely definite) and grows tenfold if the factorization reports a non-positive pivot.
 fn factor<'a>(lap: &Laplacian, sqrt_m: &'a [f64]) -> Result<(ShiftInvert<'a>, f64)> {
-    let diag = diagonal_positions(lap);
     let mut s = super::low_end_scale(lap);
     if !(s.is_finite() && s > 0.0) {
         return Err(Error::invalid("W", "the stiffness matrix has no positive diagonal (no edges?)"));
     }
+    let symbolic = lap.symbolic_cholesky()?;
     let mut last_err = String::new();
     for _ in 0..6 {
-        let mut k_mat = lap.w.clone();
-        let vals = k_mat.val_mut();
-        for (c, &p) in diag.iter().enumerate() {
-            vals[p] += s * lap.mass[c];
-        }
-        match SparseLlt::new(k_mat.as_ref()) {
+        let k_mat = crate::cholesky::combination(lap, 1.0, s);
+        match SparseLlt::new(k_mat.as_ref(), symbolic.clone()) {
             Ok(llt) => return Ok((ShiftInvert { llt, sqrt_m }, s)),
             Err(e) => {
                 last_err = e;
@@ -162,9 +91,54 @@ fn norm(x: &[f64]) -> f64 {
 fn project_out(v: MatRef<f64>, mut w: MatMut<f64>, mut c: MatMut<f64>) {
     c.fill(0.0);
     for _pass in 0..2 {
-        let coef = at_b_as_bt_a(v, w.rb(), CHUNKS);
-        a_b_into(w.rb_mut(), true, v, coef.as_ref(), -1.0, CHUNKS);
-        c += &coef;
+        gram_schmidt_pass(v, w.rb_mut(), c.rb_mut());
+    }
+}
+
+/// One pass of block classical Gram–Schmidt: w ← w − V (Vᵀ w), c += Vᵀ w (V n × j, w n × b,
+/// c j × b).
+fn gram_schmidt_pass(v: MatRef<f64>, mut w: MatMut<f64>, mut c: MatMut<f64>) {
+    let coef = at_b_as_bt_a(v, w.rb(), CHUNKS);
+    a_b_into(w.rb_mut(), true, v, coef.as_ref(), -1.0, CHUNKS);
+    c += &coef;
+}
+
+/// Orthogonalizes the new block w = Op V[:, j0..j1] (n × b) against the basis V[:, ..j1]
+/// (n × j1), accumulating the coefficients into `c` (j1 × b): the column block H[..j1, j0..j1].
+///
+/// In exact arithmetic the block Lanczos recurrence makes w orthogonal to every column before
+/// `local_from` (the previous block, or the whole basis for the first block after a thick
+/// restart, whose image couples to every kept Ritz vector), so a first pass against
+/// V[:, local_from..j1] removes everything but round-off. Then full passes against all of V,
+/// repeated while a pass removes more than 1 − 1/√2 of a column's norm (the Daniel–Gragg–
+/// Kaufman–Stewart test, "twice is enough" of Parlett): orthogonality to working precision,
+/// with one full pass where the old scheme always made two (the full passes read the whole
+/// n × j1 basis twice each; they were half of the solver's time at 5k vertices).
+fn reorthogonalize(v: MatRef<f64>, local_from: usize, mut w: MatMut<f64>, mut c: MatMut<f64>) {
+    const ETA: f64 = std::f64::consts::FRAC_1_SQRT_2;
+    let j1 = v.ncols();
+    c.fill(0.0);
+    let mut full_passes = 0;
+    if local_from > 0 {
+        gram_schmidt_pass(
+            v.subcols(local_from, j1 - local_from),
+            w.rb_mut(),
+            c.rb_mut().subrows_mut(local_from, j1 - local_from),
+        );
+    } else {
+        gram_schmidt_pass(v, w.rb_mut(), c.rb_mut());
+        full_passes = 1;
+    }
+    // At most three full passes: a vector that keeps losing norm lies (numerically) in the span
+    // of V; orthonormalize_block then replaces it by a fresh direction.
+    while full_passes < 3 {
+        let before: Vec<f64> = (0..w.ncols()).map(|j| norm(col(w.rb(), j))).collect();
+        gram_schmidt_pass(v, w.rb_mut(), c.rb_mut());
+        full_passes += 1;
+        let enough = (0..w.ncols()).all(|j| norm(col(w.rb(), j)) >= ETA * before[j]);
+        if enough {
+            break;
+        }
     }
 }
 
@@ -321,6 +295,12 @@ fn lanczos_run(
         v.subcols_mut(0, b).copy_from(&w);
     }
     let mut p = 0usize; // columns of V whose Op-image has been projected
+                        // First column of the block whose image couples to the whole basis (the start block, then
+                        // the residual block after each thick restart).
+    let mut restart_block = 0usize;
+    // Seconds in the solves, the reorthogonalization, the in-block orthonormalization, the
+    // Rayleigh–Ritz steps with their residuals, and the restarts (FUNCORR_DEBUG_LANCZOS).
+    let mut phase_seconds = [0.0f64; 5];
     let mut info =
         SolveInfo { method: "block-lanczos".into(), shift, block_size: b, max_basis: pmax, ..Default::default() };
     let mut w = Mat::<f64>::zeros(n, b);
@@ -331,17 +311,25 @@ fn lanczos_run(
         while p < pmax {
             crate::progress::check()?;
             let (j0, j1) = (p, p + b);
+            let ta = Instant::now();
             op.apply(v.subcols(j0, b), w.as_mut());
+            phase_seconds[0] += ta.elapsed().as_secs_f64();
+            let ta = Instant::now();
             info.operator_applications += b;
             let norms: Vec<f64> = (0..b).map(|j| norm(w.col_as_slice(j))).collect();
             let mut c = Mat::<f64>::zeros(j1, b);
-            project_out(v.subcols(0, j1), w.as_mut(), c.as_mut());
+            let local_from = if j0 <= restart_block { 0 } else { j0 - b };
+            reorthogonalize(v.subcols(0, j1), local_from, w.as_mut(), c.as_mut());
+            phase_seconds[1] += ta.elapsed().as_secs_f64();
+            let ta = Instant::now();
             let beta = orthonormalize_block(v.subcols(0, j1), &mut w, &norms, &mut rng);
+            phase_seconds[2] += ta.elapsed().as_secs_f64();
             h.submatrix_mut(0, j0, j1, b).copy_from(&c);
             h.submatrix_mut(j1, j0, b, b).copy_from(&beta);
             v.subcols_mut(j1, b).copy_from(&w);
             p = j1;
         }
+        let tr = Instant::now();
         // Rayleigh–Ritz on the symmetrized projected matrix.
         let mut hs = Mat::<f64>::zeros(p, p);
         for j in 0..p {
@@ -382,6 +370,7 @@ fn lanczos_run(
                 q[(0, 0)].max(0.0).sqrt() / theta[i] / lambda_ref
             })
             .collect();
+        phase_seconds[3] += tr.elapsed().as_secs_f64();
         let converged = (0..k).take_while(|&i| theta[i] > 0.0 && resid[i] <= tol).count();
         if let Some(cb) = progress {
             cb(converged, k);
@@ -389,7 +378,7 @@ fn lanczos_run(
         crate::progress::step(converged, k)?;
         if std::env::var_os("FUNCORR_DEBUG_LANCZOS").is_some() {
             let worst = resid.iter().copied().fold(0.0, f64::max);
-            eprintln!("restart {} p {p} converged {converged}/{k} worst {worst:.2e} tol {tol:.1e}", info.restarts);
+            eprintln!("restart {} p {p} converged {converged}/{k} worst {worst:.2e} tol {tol:.1e} seconds solve/reorth/block/ritz/restart {phase_seconds:.2?}", info.restarts);
         }
         if converged == k {
             let mut u = Mat::<f64>::zeros(n, k);
@@ -414,6 +403,7 @@ fn lanczos_run(
         }
         // Thick restart: keep the `keep` leading Ritz vectors and the residual block.
         info.restarts += 1;
+        let tr = Instant::now();
         let mut kept = Mat::<f64>::zeros(n, keep);
         a_b_into(kept.as_mut(), false, v.subcols(0, p), y.subcols(0, keep), 1.0, CHUNKS);
         let resid_block = v.subcols(p, b).to_owned();
@@ -428,6 +418,8 @@ fn lanczos_run(
         matmul(coupling.as_mut(), Accum::Replace, beta_last.as_ref(), y.submatrix(p - b, 0, b, keep), 1.0, Par::Seq);
         h.submatrix_mut(keep, 0, b, keep).copy_from(&coupling);
         p = keep;
+        restart_block = keep;
+        phase_seconds[4] += tr.elapsed().as_secs_f64();
     }
 }
 
@@ -435,4 +427,37 @@ fn lanczos_run(
 fn residuals_ok(lap: &Laplacian, sqrt_m: &[f64], u: &Mat<f64>, lambda: &[f64], max_res: f64) -> bool {
     let phi = Mat::<f64>::from_fn(u.nrows(), u.ncols(), |i, j| u[(i, j)] / sqrt_m[i]);
     relative_residuals(lap, &phi, lambda).iter().all(|r| *r <= max_res)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A block almost entirely in the span of the basis, partly outside the local range: the
+    /// local pass and the repeated full passes (the DGKS test fires) leave it orthogonal to
+    /// every column to round-off, and the coefficients are those of the projection.
+    #[test]
+    fn reorthogonalization_repeats_full_passes_until_orthogonal() {
+        let (n, j, b) = (600, 40, 4);
+        let mut rng = Normal::new(7);
+        let v = Mat::<f64>::from_fn(n, j, |_, _| rng.sample()).qr().compute_thin_Q();
+        let coef = Mat::<f64>::from_fn(j, b, |_, _| rng.sample());
+        let fresh = Mat::<f64>::from_fn(n, b, |_, _| 1e-9 * rng.sample());
+        for local_from in [0, j - 2 * b] {
+            let mut w = &v * &coef + &fresh;
+            let mut c = Mat::<f64>::zeros(j, b);
+            reorthogonalize(v.as_ref(), local_from, w.as_mut(), c.as_mut());
+            let left = v.transpose() * &w;
+            let worst =
+                (0..j).flat_map(|r| (0..b).map(move |q| (r, q))).fold(0.0f64, |m, (r, q)| m.max(left[(r, q)].abs()));
+            let wnorm = (0..b).map(|q| norm(col(w.as_ref(), q))).fold(0.0, f64::max);
+            assert!(worst <= 1e-12 * wnorm, "local_from {local_from}: |Vᵀw| {worst:e}, |w| {wnorm:e}");
+            // Coefficients: coef plus the (tiny) projection of the fresh part.
+            let expect = &coef + v.transpose() * &fresh;
+            let err = (0..j)
+                .flat_map(|r| (0..b).map(move |q| (r, q)))
+                .fold(0.0f64, |m, (r, q)| m.max((c[(r, q)] - expect[(r, q)]).abs()));
+            assert!(err < 1e-12, "local_from {local_from}: coefficients off by {err:e}");
+        }
+    }
 }

@@ -182,7 +182,7 @@ pub fn eigen_basis(lap: &Laplacian, opts: &SpectralOptions, progress: Option<Pro
     if !(total.is_finite() && total > 0.0) {
         return Err(Error::invalid("mass", format!("the total vertex weight {total} must be finite and positive")));
     }
-    let unit = Laplacian { w: lap.w.clone(), mass: lap.mass.iter().map(|a| a / total).collect(), kind: lap.kind };
+    let unit = lap.with_mass(lap.mass.iter().map(|a| a / total).collect());
     let sqrt_m: Vec<f64> = unit.mass.iter().map(|a| a.sqrt()).collect();
     let (mut theta_lambda, mut u, mut info) = if n <= opts.dense_below {
         dense_eigen(&unit, &sqrt_m, k)?
