@@ -27,7 +27,7 @@
 
 use std::time::Instant;
 
-use faer::{Mat, Side};
+use faer::{Mat, MatRef, Side};
 
 use crate::error::{Error, Result};
 use crate::laplacian::Laplacian;
@@ -190,6 +190,7 @@ pub fn eigen_basis(lap: &Laplacian, opts: &SpectralOptions, progress: Option<Pro
         lanczos::lanczos(&unit, &sqrt_m, opts, progress)?
     };
     drop(unit);
+    let t_post = Instant::now();
     theta_lambda.iter_mut().for_each(|l| *l /= total);
     info.shift /= total;
     let sqrt_m: Vec<f64> = lap.mass.iter().map(|a| a.sqrt()).collect();
@@ -211,6 +212,9 @@ pub fn eigen_basis(lap: &Laplacian, opts: &SpectralOptions, progress: Option<Pro
                 theta_lambda[j], residuals[j], opts.max_residual
             ),
         ));
+    }
+    if std::env::var_os("FUNCORR_DEBUG_LANCZOS").is_some() {
+        eprintln!("scaling, signs and residuals {:.2} s", t_post.elapsed().as_secs_f64());
     }
     let lam_k = theta_lambda[k - 1].abs();
     for l in &mut theta_lambda {
@@ -271,10 +275,31 @@ pub(crate) fn residual_scale(lambda_k: f64, floor: f64) -> f64 {
 /// connected components than k) of the columns of Φ (n × k), λ_k the last (largest) eigenvalue:
 /// the measure of [`Basis::residuals`].
 pub(crate) fn relative_residuals(lap: &Laplacian, phi: &Mat<f64>, lambda: &[f64]) -> Vec<f64> {
+    relative_residuals_scaled(lap, phi.as_ref(), None, lambda)
+}
+
+/// [`relative_residuals`] of φ = A^{-1/2} u column by column (`sqrt_m` = A^{1/2}, length n), or
+/// of φ = u when `sqrt_m` is `None`, without an n × k copy. Columns in parallel; each column's
+/// sums are sequential, so the values do not depend on the number of threads.
+pub(crate) fn relative_residuals_scaled(
+    lap: &Laplacian,
+    u: MatRef<f64>,
+    sqrt_m: Option<&[f64]>,
+    lambda: &[f64],
+) -> Vec<f64> {
+    use rayon::prelude::*;
     let lam_max = residual_scale(lambda.last().copied().unwrap_or(0.0), low_end_scale(lap));
-    (0..phi.ncols())
+    (0..u.ncols())
+        .into_par_iter()
         .map(|j| {
-            let col = phi.col_as_slice(j);
+            let scaled: Vec<f64>;
+            let col = match sqrt_m {
+                Some(s) => {
+                    scaled = column(u, j).iter().zip(s).map(|(x, s)| x / s).collect();
+                    &scaled[..]
+                }
+                None => column(u, j),
+            };
             let wphi = lap.apply_w(col);
             let r2: f64 = wphi
                 .iter()
@@ -288,6 +313,11 @@ pub(crate) fn relative_residuals(lap: &Laplacian, phi: &Mat<f64>, lambda: &[f64]
             r2.sqrt() / lam_max
         })
         .collect()
+}
+
+/// Column j of a column-major view as a slice.
+pub(super) fn column(m: MatRef<'_, f64>, j: usize) -> &[f64] {
+    m.col(j).try_as_col_major().expect("faer matrices are column-major").as_slice()
 }
 
 /// Sign convention: the A-weighted third moment Σ aᵢφᵢ³ is positive (invariant under vertex
