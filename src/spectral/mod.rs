@@ -184,7 +184,7 @@ pub fn eigen_basis(lap: &Laplacian, opts: &SpectralOptions, progress: Option<Pro
     }
     let unit = lap.with_mass(lap.mass.iter().map(|a| a / total).collect());
     let sqrt_m: Vec<f64> = unit.mass.iter().map(|a| a.sqrt()).collect();
-    let (mut theta_lambda, mut u, mut info) = if n <= opts.dense_below {
+    let (mut theta_lambda, u, mut info) = if n <= opts.dense_below {
         dense_eigen(&unit, &sqrt_m, k)?
     } else {
         lanczos::lanczos(&unit, &sqrt_m, opts, progress)?
@@ -194,13 +194,13 @@ pub fn eigen_basis(lap: &Laplacian, opts: &SpectralOptions, progress: Option<Pro
     theta_lambda.iter_mut().for_each(|l| *l /= total);
     info.shift /= total;
     let sqrt_m: Vec<f64> = lap.mass.iter().map(|a| a.sqrt()).collect();
-    // φ = A^{-1/2} u, then a deterministic sign.
+    // φ = A^{-1/2} u into a matrix of its own size (the solver's U may live in the larger
+    // allocation of its Krylov basis, which is freed here), then a deterministic sign.
+    let solver_u = u;
+    let mut u = Mat::<f64>::from_fn(n, k, |i, j| solver_u[(i, j)] / sqrt_m[i]);
+    drop(solver_u);
     for j in 0..k {
-        let col = u.col_as_slice_mut(j);
-        for (x, s) in col.iter_mut().zip(&sqrt_m) {
-            *x /= s;
-        }
-        fix_sign(col, &lap.mass);
+        fix_sign(u.col_as_slice_mut(j), &lap.mass);
     }
     // Verify every pair.
     let residuals = relative_residuals(lap, &u, &theta_lambda);
