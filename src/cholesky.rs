@@ -1,7 +1,8 @@
-//! Sparse Cholesky factorizations of the matrices W + c A (c ≥ 0) and A + t W of a
-//! [`Laplacian`], which share W's sparsity pattern (A is diagonal and W stores its diagonal):
-//! the fill-reducing ordering and symbolic analysis are computed once per Laplacian
-//! ([`Laplacian::symbolic_cholesky`], cached on it) and reused by every numeric factorization —
+//! Sparse Cholesky factorizations of symmetric positive definite matrices that share one
+//! sparsity pattern — for a Laplacian, W + c A (c ≥ 0) and A + t W (A is diagonal and W stores
+//! its diagonal): the fill-reducing ordering and symbolic analysis are computed once per
+//! Laplacian ([`crate::laplacian::Laplacian::symbolic_cholesky`], cached on it) and reused by
+//! every numeric factorization —
 //! the eigensolver's shift-invert operator ([`crate::spectral`]) and the roughness probe and
 //! smoothing steps of [`crate::denoise`]. At 840k vertices the ordering alone takes ≈ 2.3 s.
 //!
@@ -21,7 +22,6 @@ use faer::sparse::SparseColMatRef;
 use faer::{Conj, MatMut, Par, Side};
 
 use crate::error::{Error, Result};
-use crate::laplacian::Laplacian;
 
 /// The AMD ordering and supernodal symbolic factorization of a symmetric pattern (the lower
 /// triangle of `pattern`, n × n, diagonal stored). Errors: faer's (a pattern too large to index).
@@ -82,22 +82,4 @@ impl SparseLlt {
             MemStack::new(&mut buf),
         );
     }
-}
-
-/// M = c_w W + c_a A for a Laplacian (same pattern as W): the eigensolver's W + sA and the
-/// smoothing step's A + tW.
-pub(crate) fn combination(lap: &Laplacian, c_w: f64, c_a: f64) -> faer::sparse::SparseColMat<usize, f64> {
-    let mut m = lap.w.clone();
-    let sym = lap.w.symbolic();
-    let (cp, ri) = (sym.col_ptr(), sym.row_idx());
-    let vals = m.val_mut();
-    for c in 0..lap.n() {
-        for p in cp[c]..cp[c + 1] {
-            vals[p] *= c_w;
-            if ri[p] == c {
-                vals[p] += c_a * lap.mass[c];
-            }
-        }
-    }
-    m
 }

@@ -106,9 +106,8 @@ fn step_positions(mesh: &TriMesh, lap: &Laplacian, t: f64) -> Result<Vec<[f64; 3
     if lap.n() != n {
         return Err(Error::invalid("laplacian", format!("it has {} vertices, the mesh {n}", lap.n())));
     }
-    let llt =
-        crate::cholesky::SparseLlt::new(crate::cholesky::combination(lap, t, 1.0).as_ref(), lap.symbolic_cholesky()?)
-            .map_err(|e| Error::numerical("smoothing", format!("factorization of A + tW failed: {e}")))?;
+    let llt = crate::cholesky::SparseLlt::new(lap.combination(t, 1.0).as_ref(), lap.symbolic_cholesky()?)
+        .map_err(|e| Error::numerical("smoothing", format!("factorization of A + tW failed: {e}")))?;
     let v = mesh.vertices();
     let mut p = Mat::from_fn(n, 3, |i, d| lap.mass[i] * v[i][d]);
     llt.solve_in_place(p.as_mut());

@@ -157,6 +157,24 @@ impl Laplacian {
         Ok(s)
     }
 
+    /// M = c_w W + c_a A (n × n, W's pattern): the eigensolver's W + sA and the smoothing
+    /// step's A + tW, factored with [`Laplacian::symbolic_cholesky`].
+    pub(crate) fn combination(&self, c_w: f64, c_a: f64) -> SparseColMat<usize, f64> {
+        let mut m = self.w.clone();
+        let sym = self.w.symbolic();
+        let (cp, ri) = (sym.col_ptr(), sym.row_idx());
+        let vals = m.val_mut();
+        for c in 0..self.n() {
+            for p in cp[c]..cp[c + 1] {
+                vals[p] *= c_w;
+                if ri[p] == c {
+                    vals[p] += c_a * self.mass[c];
+                }
+            }
+        }
+        m
+    }
+
     /// The same Laplacian with other vertex weights (length n), sharing the cached symbolic
     /// factorization (the pattern is W's).
     pub(crate) fn with_mass(&self, mass: Vec<f64>) -> Self {

@@ -10,6 +10,7 @@ const LAYERS: &[(&str, f64)] = &[
     ("error", 0.0),
     ("rng", 0.0),
     ("linalg", 0.0),
+    ("cholesky", 0.1),
     ("progress", 0.0),
     ("optim", 0.1),
     ("io", 1.0),

@@ -69,7 +69,7 @@ fn factor<'a>(lap: &Laplacian, sqrt_m: &'a [f64]) -> Result<(ShiftInvert<'a>, f6
     let symbolic = lap.symbolic_cholesky()?;
     let mut last_err = String::new();
     for _ in 0..6 {
-        let k_mat = crate::cholesky::combination(lap, 1.0, s);
+        let k_mat = lap.combination(1.0, s);
         match SparseLlt::new(k_mat.as_ref(), symbolic.clone()) {
             Ok(llt) => return Ok((ShiftInvert { llt, sqrt_m }, s)),
             Err(e) => {
