@@ -8,11 +8,12 @@ use faer::linalg::matmul::matmul;
 use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 
+use super::column as col;
 use super::{relative_residuals_scaled, Normal, Progress, SolveInfo, SpectralOptions};
 use crate::cholesky::SparseLlt;
 use crate::error::{Error, Result};
 use crate::laplacian::Laplacian;
-use crate::linalg::{a_b_in_place, a_b_into, at_b_as_bt_a, RowChunks};
+use crate::linalg::{a_b_in_place, a_b_into, at_b_as_bt_a, dot, RowChunks};
 
 // The Krylov basis is tall and skinny (n × p with p ≪ n) and the blocks are thin (b columns):
 // its products are `crate::linalg`'s row-chunked ones, with the chunking tuned for them.
@@ -141,10 +142,6 @@ fn reorthogonalize(v: MatRef<f64>, local_from: usize, mut w: MatMut<f64>, mut c:
         }
     }
 }
-
-use super::column as col;
-
-use crate::linalg::dot;
 
 /// Orthonormalizes the block `w` (n × b, already orthogonal to `v`) in place: w = Q β with β
 /// upper triangular (b × b), by modified Gram–Schmidt applied twice. A column that is
@@ -291,9 +288,10 @@ fn lanczos_run(
         orthonormalize_block(empty.as_ref(), &mut w, &norms, &mut rng);
         v.subcols_mut(0, b).copy_from(&w);
     }
-    let mut p = 0usize; // columns of V whose Op-image has been projected
-                        // First column of the block whose image couples to the whole basis (the start block, then
-                        // the residual block after each thick restart).
+    // Columns of V whose Op-image has been projected.
+    let mut p = 0usize;
+    // First column of the block whose image couples to the whole basis (the start block, then
+    // the residual block after each thick restart).
     let mut restart_block = 0usize;
     // Seconds in the solves, the reorthogonalization, the in-block orthonormalization, the
     // Rayleigh–Ritz steps with their residuals, and the restarts (FUNCORR_DEBUG_LANCZOS).
