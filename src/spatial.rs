@@ -310,6 +310,97 @@ const SCREEN_SAFETY: f64 = 4.0;
 /// Independent lanes of the screen's vectorized test (one AVX-512 register of f64).
 const LANES: usize = 8;
 
+/// One chunk of the screen of [`best_rows`]: the single-precision products of a block of
+/// queries (rows of `dots`) with the reference rows c0 … c0 + w − 1 (its first w columns), and
+/// those rows' squared norms (0 for the inner-product search) and norms.
+#[derive(Clone, Copy)]
+struct Chunk<'a> {
+    dots: &'a Mat<f32>,
+    c0: usize,
+    w: usize,
+    ref_norm: &'a [f64],
+    ref_len: &'a [f64],
+}
+
+/// The screen of one chunk: lowers every query's best upper bound `best_hi` over the chunk,
+/// then adds to `cands` the rows whose lower bound does not exceed it (`scale`: 2 ε ‖q‖ per
+/// query, see [`best_rows`]). Dispatched to the widest vectors the CPU has (AVX-512, AVX2, or
+/// the baseline): the same scalar code compiled three times. Without fused multiply-adds (Rust
+/// never contracts a product and a sum), every width computes the same values bit for bit.
+fn screen(chunk: Chunk, scale: &[f64], best_hi: &mut [f64], cands: &mut [Vec<(f64, usize)>]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU has AVX-512F (checked on the line above).
+            return unsafe { screen_avx512(chunk, scale, best_hi, cands) };
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2 (checked on the line above).
+            return unsafe { screen_avx2(chunk, scale, best_hi, cands) };
+        }
+    }
+    screen_generic(chunk, scale, best_hi, cands)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn screen_avx512(chunk: Chunk, scale: &[f64], best_hi: &mut [f64], cands: &mut [Vec<(f64, usize)>]) {
+    screen_generic(chunk, scale, best_hi, cands)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn screen_avx2(chunk: Chunk, scale: &[f64], best_hi: &mut [f64], cands: &mut [Vec<(f64, usize)>]) {
+    screen_generic(chunk, scale, best_hi, cands)
+}
+
+#[inline(always)]
+fn screen_generic(chunk: Chunk, scale: &[f64], best_hi: &mut [f64], cands: &mut [Vec<(f64, usize)>]) {
+    let Chunk { dots, c0, w, ref_norm, ref_len } = chunk;
+    let len = best_hi.len();
+    // Pass 1 (branch-free, vectorized): the smallest upper bound of every query over the chunk.
+    for j in 0..w {
+        let col = &dots.col_as_slice(j)[..len];
+        let (rn, rl) = (ref_norm[j], ref_len[j]);
+        for ((hi, &dot), &sc) in best_hi.iter_mut().zip(col).zip(scale) {
+            // A compare-and-select, not f64::min: it compiles to `minpd` (the values are
+            // finite, checked by the caller), f64::min's NaN rule to scalar code.
+            let v = rn - 2.0 * dot as f64 + sc * rl;
+            *hi = if v < *hi { v } else { *hi };
+        }
+    }
+    // Pass 2: the candidates, lower bound ≤ best upper bound. A column is scanned one query at
+    // a time only when some query keeps it (a vectorized test first).
+    for j in 0..w {
+        let col = &dots.col_as_slice(j)[..len];
+        let (rn, rl) = (ref_norm[j], ref_len[j]);
+        let lo = |i: usize| rn - 2.0 * col[i] as f64 - scale[i] * rl;
+        let mut margin = [f64::NEG_INFINITY; LANES];
+        let full = len - len % LANES;
+        for i0 in (0..full).step_by(LANES) {
+            for l in 0..LANES {
+                let x = best_hi[i0 + l] - lo(i0 + l);
+                margin[l] = if x > margin[l] { x } else { margin[l] }; // `maxpd`, as above
+            }
+        }
+        let tail = (full..len).map(|i| best_hi[i] - lo(i)).fold(f64::NEG_INFINITY, f64::max);
+        if margin.iter().fold(tail, |a, &b| a.max(b)) < 0.0 {
+            continue;
+        }
+        for i in 0..len {
+            let l = lo(i);
+            if l <= best_hi[i] {
+                let list = &mut cands[i];
+                list.push((l, c0 + j));
+                if list.len() >= 64 {
+                    let hi = best_hi[i];
+                    list.retain(|c| c.0 <= hi);
+                }
+            }
+        }
+    }
+}
+
 /// argmin_j (‖r_j‖² − 2 q·r_j) (`euclidean`) or argmax_j q·r_j for every query row.
 ///
 /// Two passes, exact in double precision. *Screen:* the products q·r_j in single precision
@@ -376,49 +467,9 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
                     1.0f32,
                     Par::Seq,
                 );
-                // Pass 1 (branch-free, vectorized): the smallest upper bound of every query over
-                // the chunk.
-                for j in 0..w {
-                    let col = &dots.col_as_slice(j)[..len];
-                    let (rn, rl) = (ref_norm[c0 + j], ref_len[c0 + j]);
-                    for ((hi, &dot), &sc) in best_hi.iter_mut().zip(col).zip(&scale) {
-                        // A compare-and-select, not f64::min: it compiles to `minpd` (the
-                        // values are finite, checked above), f64::min's NaN rule to scalar code.
-                        let v = rn - 2.0 * dot as f64 + sc * rl;
-                        *hi = if v < *hi { v } else { *hi };
-                    }
-                }
-                // Pass 2: the candidates, lower bound ≤ best upper bound. A column is scanned
-                // one query at a time only when some query keeps it (a vectorized test first).
-                for j in 0..w {
-                    let col = &dots.col_as_slice(j)[..len];
-                    let (rn, rl) = (ref_norm[c0 + j], ref_len[c0 + j]);
-                    let lo = |i: usize| rn - 2.0 * col[i] as f64 - scale[i] * rl;
-                    let mut margin = [f64::NEG_INFINITY; LANES];
-                    let full = len - len % LANES;
-                    for i0 in (0..full).step_by(LANES) {
-                        for l in 0..LANES {
-                            let x = best_hi[i0 + l] - lo(i0 + l);
-                            margin[l] = if x > margin[l] { x } else { margin[l] };
-                            // `maxpd`, as above
-                        }
-                    }
-                    let tail = (full..len).map(|i| best_hi[i] - lo(i)).fold(f64::NEG_INFINITY, f64::max);
-                    if margin.iter().fold(tail, |a, &b| a.max(b)) < 0.0 {
-                        continue;
-                    }
-                    for i in 0..len {
-                        let l = lo(i);
-                        if l <= best_hi[i] {
-                            let list = &mut cands[i];
-                            list.push((l, c0 + j));
-                            if list.len() >= 64 {
-                                let hi = best_hi[i];
-                                list.retain(|c| c.0 <= hi);
-                            }
-                        }
-                    }
-                }
+                let chunk =
+                    Chunk { dots: &dots, c0, w, ref_norm: &ref_norm[c0..c0 + w], ref_len: &ref_len[c0..c0 + w] };
+                screen(chunk, &scale, &mut best_hi, &mut cands);
             }
             (0..len)
                 .map(|i| {
@@ -511,5 +562,49 @@ mod tests {
         assert!((s.weights.iter().sum::<f64>() - mass.iter().sum::<f64>()).abs() < 1e-9);
         assert_eq!(farthest_point_samples(mesh.vertices(), &mass, 10_000).unwrap(), Samples::all(&mass));
         assert!(farthest_point_samples(mesh.vertices(), &mass[1..], 10).is_err());
+    }
+
+    /// Every vector width of the screen (AVX-512, AVX2 where the CPU has them, the baseline)
+    /// gives the same bounds and candidates bit for bit, on products with near-ties and a
+    /// query count that is not a multiple of the lanes.
+    #[test]
+    fn screen_is_the_same_at_every_vector_width() {
+        let (len, w, c0) = (203, 300, 17);
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        // Products on a coarse grid: many exact ties between columns.
+        let dots = Mat::<f32>::from_fn(len, w, |_, _| (next() * 64.0).floor() as f32 / 16.0);
+        let ref_norm: Vec<f64> = (0..w).map(|_| (next() * 32.0).floor() / 4.0).collect();
+        let ref_len: Vec<f64> = ref_norm.iter().map(|v| v.sqrt()).collect();
+        let scale: Vec<f64> = (0..len).map(|_| 1e-3 * next()).collect();
+        let run = |f: &dyn Fn(Chunk, &[f64], &mut [f64], &mut [Vec<(f64, usize)>])| {
+            let mut best_hi = vec![f64::INFINITY; len];
+            let mut cands = vec![Vec::new(); len];
+            let chunk = Chunk { dots: &dots, c0, w, ref_norm: &ref_norm, ref_len: &ref_len };
+            f(chunk, &scale, &mut best_hi, &mut cands);
+            let bits: Vec<u64> = best_hi.iter().map(|v| v.to_bits()).collect();
+            let cands: Vec<Vec<(u64, usize)>> =
+                cands.iter().map(|l| l.iter().map(|&(v, j)| (v.to_bits(), j)).collect()).collect();
+            (bits, cands)
+        };
+        let generic = run(&|c, s, b, l| screen_generic(c, s, b, l));
+        assert!(generic.1.iter().any(|l| l.len() > 1), "the data should leave several candidates");
+        assert_eq!(run(&|c, s, b, l| screen(c, s, b, l)), generic);
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2.
+                assert_eq!(run(&|c, s, b, l| unsafe { screen_avx2(c, s, b, l) }), generic);
+            }
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the CPU has AVX-512F.
+                assert_eq!(run(&|c, s, b, l| unsafe { screen_avx512(c, s, b, l) }), generic);
+            }
+        }
     }
 }
