@@ -389,7 +389,8 @@ pub(crate) struct PipelineArgs {
     /// (--map-check-every).
     #[arg(long, default_value_t = Finite(defaults().completion.settled.map_or(0.005, |s| s.tolerance)))]
     pub(crate) map_tolerance: Finite,
-    /// Point-map extraction of the completion method.
+    /// Point-map extraction of the completion method (used with --refine none; a refinement
+    /// starts from C).
     #[arg(long, value_enum, default_value = "nn")]
     pub(crate) extract: ExtractChoice,
     /// Point-wise refinement (default: zoomout for rich data, icp for scarce data, as measured

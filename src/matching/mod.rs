@@ -94,7 +94,8 @@ pub struct MatchOptions {
     pub completion: CompletionOptions,
     /// Size of the eq. (5) map (with `commutativity`) that starts the completion method.
     pub init_k: usize,
-    /// Point-map extraction of the completion method.
+    /// Point-map extraction of the completion method (the output map only with `Refine::None`;
+    /// a refinement starts from C and makes its own).
     pub extraction: Extraction,
     /// Refinement.
     pub refine: Refine,
@@ -492,23 +493,28 @@ fn run_with_gradients(
                     points,
                 )
             })?;
-            let maps = timed(&mut stages, "extraction", || extract(&s, bx, by, opts.extraction))?;
+            // The method's own point maps are the output only without a refinement (which starts
+            // from C and makes its own).
+            let maps = match opts.refine {
+                Refine::None => Some(timed(&mut stages, "extraction", || extract(&s, bx, by, opts.extraction))?),
+                Refine::Icp | Refine::Zoomout => None,
+            };
             solver = Some(SolverReport::Completion(s.report.clone()));
             coefficients = s.coefficients.clone();
             factors = Some((s.left.clone(), s.right.clone()));
-            (s.c, Some(maps))
+            (s.c, maps)
         }
     };
     let (c, map_xy) = timed(&mut stages, "point-wise map", || -> Result<(Mat<f64>, Vec<usize>)> {
         // The start of the refinement: the method's map, for completion its leading
         // refine_k × refine_k block (T projected on the first refine_k eigenfunctions).
-        let (c_start, direct) = match &method_maps {
-            Some((map_xy, _)) => {
-                let kr = opts.refine_k.min(c_method.nrows());
-                (c_method.submatrix(0, 0, kr, kr).to_owned(), Some(map_xy.clone()))
-            }
-            None => (c_method.clone(), None),
+        let c_start = if matches!(opts.method, Method::Completion) {
+            let kr = opts.refine_k.min(c_method.nrows());
+            c_method.submatrix(0, 0, kr, kr).to_owned()
+        } else {
+            c_method.clone()
         };
+        let direct = method_maps.as_ref().map(|(map_xy, _)| map_xy.clone());
         match opts.refine {
             Refine::None => match direct {
                 Some(map) => Ok((c_method.clone(), map)),

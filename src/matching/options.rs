@@ -325,7 +325,8 @@ match_settings! {
     map_check_every: usize,
     /// Fraction of checked vertices whose image may still change (default 0.005).
     map_tolerance: f64,
-    /// Point-map extraction of the completion method (default nn).
+    /// Point-map extraction of the completion method (default nn; the output map only with
+    /// refine none, a refinement starts from C).
     extract: Extraction,
     /// Point-wise refinement (default zoomout for rich data, icp for scarce data).
     refine: Refine,
