@@ -23,6 +23,73 @@ use faer::reborrow::Reborrow;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
+/// `$vis fn $name(args) -> R` that runs the `#[inline(always)]` function `$generic` compiled for
+/// the widest vectors the CPU has: AVX-512F, AVX2, or the baseline x86-64 the crate is built for
+/// (SSE2: two f64 lanes), detected at run time (std caches the answer). For loops the compiler
+/// vectorizes but that are not faer's kernels (which dispatch on their own). Every width
+/// computes the same values bit for bit: Rust never contracts a product and a sum into a fused
+/// multiply-add nor reassociates, so a wider vector only runs more of the same operations at
+/// once. Written here rather than taken from the `multiversion` crate: one macro of a few
+/// lines, no procedural-macro dependency to build.
+macro_rules! at_vector_width {
+    ($(#[$meta:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? = $generic:path) => {
+        $(#[$meta])*
+        $vis fn $name($($arg: $ty),*) $(-> $ret)? {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx512f")]
+                unsafe fn avx512($($arg: $ty),*) $(-> $ret)? {
+                    $generic($($arg),*)
+                }
+                #[target_feature(enable = "avx2")]
+                unsafe fn avx2($($arg: $ty),*) $(-> $ret)? {
+                    $generic($($arg),*)
+                }
+                let widest = crate::linalg::widest_allowed();
+                if widest >= 2 && std::arch::is_x86_feature_detected!("avx512f") {
+                    // SAFETY: the CPU has AVX-512F (checked on the line above).
+                    return unsafe { avx512($($arg),*) };
+                }
+                if widest >= 1 && std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU has AVX2 (checked on the line above).
+                    return unsafe { avx2($($arg),*) };
+                }
+            }
+            $generic($($arg),*)
+        }
+    };
+}
+pub(crate) use at_vector_width;
+
+#[cfg(test)]
+thread_local! {
+    /// The widest vectors [`at_vector_width`] may use on this thread (tests): 0 the baseline,
+    /// 1 up to AVX2, 2 up to AVX-512F.
+    pub(crate) static WIDEST: std::cell::Cell<u8> = const { std::cell::Cell::new(2) };
+}
+
+/// The widest vectors [`at_vector_width`] may use (always every width outside tests).
+#[inline]
+pub(crate) fn widest_allowed() -> u8 {
+    #[cfg(test)]
+    {
+        WIDEST.with(|w| w.get())
+    }
+    #[cfg(not(test))]
+    {
+        2
+    }
+}
+
+/// Runs `f` with [`at_vector_width`] limited to `widest` on this thread (tests of the widths).
+#[cfg(test)]
+pub(crate) fn with_widest<R>(widest: u8, f: impl FnOnce() -> R) -> R {
+    let old = WIDEST.with(|w| w.replace(widest));
+    let r = f();
+    WIDEST.with(|w| w.set(old));
+    r
+}
+
 /// The minimum-norm solution X = H⁺ B of a symmetric positive semi-definite system (H k × k,
 /// B k × r) from the eigendecomposition of H: eigenvalues at or below k ε max|λ| count as zero.
 /// The fallback of the Cholesky solves when H is singular. `what` names the caller in errors.

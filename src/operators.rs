@@ -19,7 +19,8 @@
 //! dimensionless f (∫ over area of 1/length²).
 
 use faer::linalg::matmul::matmul;
-use faer::{Accum, Mat, MatRef, Par};
+use faer::reborrow::ReborrowMut;
+use faer::{Accum, Mat, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
@@ -236,6 +237,30 @@ const FACE_BLOCK: usize = 2048;
 /// thread count.
 const FACE_GROUPS: usize = 8;
 
+/// W[t, b] = ⟨v_t, ∇φ_b⟩ = v_t,x g_x[t, b] + v_t,y g_y[t, b] + v_t,z g_z[t, b] on a block of
+/// faces: `v` the three coordinates of the rotated descriptor gradients (len each), `g` the
+/// three components of the basis' face gradients (len × k each), `w` len × k.
+#[inline(always)]
+fn rotated_gradient_products_generic<'a>(v: [&[f64]; 3], g: [MatRef<'a, f64>; 3], mut w: MatMut<'_, f64>) {
+    let len = v[0].len();
+    let col = |m: MatRef<'a, f64>, b: usize| -> &'a [f64] {
+        let c = m.col(b).try_as_col_major().expect("gradient columns are contiguous");
+        &c.as_slice()[..len]
+    };
+    for b in 0..w.ncols() {
+        let (c0, c1, c2) = (col(g[0], b), col(g[1], b), col(g[2], b));
+        let out = w.rb_mut().col_mut(b).try_as_col_major_mut().expect("owned columns are contiguous").as_slice_mut();
+        for t in 0..len {
+            out[t] = v[0][t] * c0[t] + v[1][t] * c1[t] + v[2][t] * c2[t];
+        }
+    }
+}
+
+crate::linalg::at_vector_width! {
+    /// [`rotated_gradient_products_generic`] at the CPU's vector width.
+    fn rotated_gradient_products(v: [&[f64]; 3], g: [MatRef<'_, f64>; 3], w: MatMut<'_, f64>) = rotated_gradient_products_generic
+}
+
 /// Orientation operators `O_p` (k × k each, see the module docs) of the q columns of F (n × q)
 /// in the basis Φ (n × k): `(O_p)_ab = Σ_F w_F mean_F(φ_a) ⟨n_F × ∇f_p, ∇φ_b⟩`. With
 /// `unit_gradients`, ∇f_p is replaced by ∇f_p / |∇f_p| on every face (as in the BCICP code of
@@ -283,28 +308,23 @@ pub fn orientation_operators(
             let mut ops = vec![Mat::<f64>::zeros(k, k); q];
             let (g0, g1) = (group * per_group, ((group + 1) * per_group).min(nf));
             let mut w = Mat::<f64>::zeros(FACE_BLOCK.min(g1 - g0), k);
-            let mut v = vec![[0.0; 3]; FACE_BLOCK];
+            // The block's rotated gradients, one array per coordinate.
+            let mut v = [vec![0.0; FACE_BLOCK], vec![0.0; FACE_BLOCK], vec![0.0; FACE_BLOCK]];
             for b0 in (g0..g1).step_by(FACE_BLOCK) {
                 let len = FACE_BLOCK.min(g1 - b0);
                 let gb: [MatRef<f64>; 3] = std::array::from_fn(|c| g[c].as_ref().subrows(b0, len));
                 for (p, op) in ops.iter_mut().enumerate() {
-                    for (t, vt) in v[..len].iter_mut().enumerate() {
+                    for t in 0..len {
                         let mut x = rotated(b0 + t, p);
                         if unit_gradients {
                             let l = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
                             x = if l > 1e-12 * top[p] { [x[0] / l, x[1] / l, x[2] / l] } else { [0.0; 3] };
                         }
-                        *vt = x;
+                        (v[0][t], v[1][t], v[2][t]) = (x[0], x[1], x[2]);
                     }
-                    // W[F, b] = ⟨n_F × ∇f_F, ∇φ_b,F⟩ on the block, column by column.
-                    let mut wb = w.as_mut().subrows_mut(0, len);
-                    for b in 0..k {
-                        let (c0, c1, c2) = (gb[0].col(b), gb[1].col(b), gb[2].col(b));
-                        for (t, out) in wb.as_mut().col_mut(b).iter_mut().enumerate() {
-                            let x = v[t];
-                            *out = x[0] * c0[t] + x[1] * c1[t] + x[2] * c2[t];
-                        }
-                    }
+                    let vb = [&v[0][..len], &v[1][..len], &v[2][..len]];
+                    rotated_gradient_products(vb, gb, w.as_mut().subrows_mut(0, len));
+                    let wb = w.as_ref().subrows(0, len);
                     matmul(
                         op.as_mut(),
                         Accum::Add,
@@ -388,6 +408,32 @@ mod tests {
     /// definition summed face by face, on a mesh of 81,920 faces (8 groups of 10,240 faces, five
     /// blocks each), with and without unit gradients; a random basis and functions (only the
     /// sums matter).
+    /// The block products ⟨v_t, ∇φ_b⟩ are the same bits at every vector width.
+    #[test]
+    fn rotated_gradient_products_are_the_same_at_every_vector_width() {
+        let (len, k) = (37, 5);
+        let mut rng = crate::spectral::Normal::new(11);
+        let g: Vec<Mat<f64>> = (0..3).map(|_| Mat::from_fn(len, k, |_, _| rng.sample())).collect();
+        let v: Vec<Vec<f64>> = (0..3).map(|_| (0..len).map(|_| rng.sample()).collect()).collect();
+        let run = |widest: u8| {
+            let mut w = Mat::<f64>::zeros(len, k);
+            crate::linalg::with_widest(widest, || {
+                rotated_gradient_products(
+                    [&v[0], &v[1], &v[2]],
+                    [g[0].as_ref(), g[1].as_ref(), g[2].as_ref()],
+                    w.as_mut(),
+                )
+            });
+            w
+        };
+        let want =
+            Mat::from_fn(len, k, |t, b| v[0][t] * g[0][(t, b)] + v[1][t] * g[1][(t, b)] + v[2][t] * g[2][(t, b)]);
+        for widest in 0..=2 {
+            let w = run(widest);
+            assert!((0..k).all(|b| (0..len).all(|t| w[(t, b)].to_bits() == want[(t, b)].to_bits())), "widest {widest}");
+        }
+    }
+
     #[test]
     fn blocked_orientation_operators_are_the_per_face_sums() {
         let m = icosphere(6);

@@ -269,18 +269,7 @@ pub fn farthest_point_samples(points: &[[f64; 3]], mass: &[f64], count: usize) -
     while chosen.len() < count {
         let s = chosen.len();
         chosen.push(next);
-        let c = points[next];
-        let mut far = (0usize, -1.0f64);
-        for (i, p) in points.iter().enumerate() {
-            let d = d2(p, &c);
-            if d < best[i] {
-                best[i] = d;
-                owner[i] = s;
-            }
-            if best[i] > far.1 {
-                far = (i, best[i]);
-            }
-        }
+        let far = farthest_update(points, points[next], s, &mut best, &mut owner);
         if far.1 <= 0.0 {
             break;
         }
@@ -291,6 +280,47 @@ pub fn farthest_point_samples(points: &[[f64; 3]], mass: &[f64], count: usize) -
         weights[owner[i]] += mass[i];
     }
     Ok(Samples { vertices: chosen, weights })
+}
+
+/// One step of [`farthest_point_samples`]: every point's squared distance to its nearest sample
+/// so far (`best`) and that sample's number (`owner`) updated with sample number `s` at `c`;
+/// returns the farthest point and its squared distance (the first index on ties; (0, −1) when
+/// no distance is a number).
+#[inline(always)]
+fn farthest_update_generic(
+    points: &[[f64; 3]],
+    c: [f64; 3],
+    s: usize,
+    best: &mut [f64],
+    owner: &mut [usize],
+) -> (usize, f64) {
+    for ((p, b), o) in points.iter().zip(best.iter_mut()).zip(owner.iter_mut()) {
+        let d = (p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2);
+        if d < *b {
+            *b = d;
+            *o = s;
+        }
+    }
+    // The largest distance in LANES independent running maxima (a compare-and-select: `maxpd`),
+    // then its first occurrence.
+    let mut lanes = [-1.0f64; LANES];
+    let chunks = best.chunks_exact(LANES);
+    let tail = chunks.remainder().iter().fold(-1.0f64, |m, &v| if v > m { v } else { m });
+    for chunk in chunks {
+        for l in 0..LANES {
+            lanes[l] = if chunk[l] > lanes[l] { chunk[l] } else { lanes[l] };
+        }
+    }
+    let far = lanes.iter().fold(tail, |m, &v| if v > m { v } else { m });
+    match best.iter().position(|&v| v == far) {
+        Some(i) => (i, far),
+        None => (0, -1.0),
+    }
+}
+
+crate::linalg::at_vector_width! {
+    /// [`farthest_update_generic`] at the CPU's vector width.
+    fn farthest_update(points: &[[f64; 3]], c: [f64; 3], s: usize, best: &mut [f64], owner: &mut [usize]) -> (usize, f64) = farthest_update_generic
 }
 
 /// The largest embedding value the nearest-neighbour searches accept (beyond it the exact
@@ -322,36 +352,11 @@ struct Chunk<'a> {
     ref_len: &'a [f64],
 }
 
-/// The screen of one chunk: lowers every query's best upper bound `best_hi` over the chunk,
-/// then adds to `cands` the rows whose lower bound does not exceed it (`scale`: 2 ε ‖q‖ per
-/// query, see [`best_rows`]). Dispatched to the widest vectors the CPU has (AVX-512, AVX2, or
-/// the baseline): the same scalar code compiled three times. Without fused multiply-adds (Rust
-/// never contracts a product and a sum), every width computes the same values bit for bit.
-fn screen(chunk: Chunk, scale: &[f64], best_hi: &mut [f64], cands: &mut [Vec<(f64, usize)>]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU has AVX-512F (checked on the line above).
-            return unsafe { screen_avx512(chunk, scale, best_hi, cands) };
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2 (checked on the line above).
-            return unsafe { screen_avx2(chunk, scale, best_hi, cands) };
-        }
-    }
-    screen_generic(chunk, scale, best_hi, cands)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn screen_avx512(chunk: Chunk, scale: &[f64], best_hi: &mut [f64], cands: &mut [Vec<(f64, usize)>]) {
-    screen_generic(chunk, scale, best_hi, cands)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn screen_avx2(chunk: Chunk, scale: &[f64], best_hi: &mut [f64], cands: &mut [Vec<(f64, usize)>]) {
-    screen_generic(chunk, scale, best_hi, cands)
+crate::linalg::at_vector_width! {
+    /// The screen of one chunk: lowers every query's best upper bound `best_hi` over the chunk,
+    /// then adds to `cands` the rows whose lower bound does not exceed it (`scale`: 2 ε ‖q‖ per
+    /// query, see [`best_rows`]), at the CPU's vector width ([`crate::linalg::at_vector_width`]).
+    fn screen(chunk: Chunk, scale: &[f64], best_hi: &mut [f64], cands: &mut [Vec<(f64, usize)>]) = screen_generic
 }
 
 #[inline(always)]
@@ -594,17 +599,38 @@ mod tests {
         };
         let generic = run(&|c, s, b, l| screen_generic(c, s, b, l));
         assert!(generic.1.iter().any(|l| l.len() > 1), "the data should leave several candidates");
-        assert_eq!(run(&|c, s, b, l| screen(c, s, b, l)), generic);
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the CPU has AVX2.
-                assert_eq!(run(&|c, s, b, l| unsafe { screen_avx2(c, s, b, l) }), generic);
+        for widest in 0..=2 {
+            let dispatched = crate::linalg::with_widest(widest, || run(&|c, s, b, l| screen(c, s, b, l)));
+            assert_eq!(dispatched, generic, "widest {widest}");
+        }
+    }
+
+    /// The farthest-point step at every vector width equals its definition (a running argmin of
+    /// the distance to the samples, then the first farthest point), ties and all.
+    #[test]
+    fn farthest_update_is_its_definition_at_every_vector_width() {
+        // Points on a coarse grid: many equal distances.
+        let points: Vec<[f64; 3]> = (0..203).map(|i| [(i % 5) as f64, ((i / 5) % 4) as f64, (i % 3) as f64]).collect();
+        let n = points.len();
+        let (mut best, mut owner) = (vec![f64::INFINITY; n], vec![0usize; n]);
+        for (s, &c) in [17usize, 3, 150].iter().enumerate() {
+            // The definition, as the loop of `farthest_point_samples` was written.
+            let (mut want_best, mut want_owner, mut far) = (best.clone(), owner.clone(), (0usize, -1.0f64));
+            for (i, p) in points.iter().enumerate() {
+                let d = (0..3).map(|k| (p[k] - points[c][k]).powi(2)).sum::<f64>();
+                if d < want_best[i] {
+                    (want_best[i], want_owner[i]) = (d, s);
+                }
+                if want_best[i] > far.1 {
+                    far = (i, want_best[i]);
+                }
             }
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: the CPU has AVX-512F.
-                assert_eq!(run(&|c, s, b, l| unsafe { screen_avx512(c, s, b, l) }), generic);
+            for widest in 0..=2 {
+                let (mut b, mut o) = (best.clone(), owner.clone());
+                let got = crate::linalg::with_widest(widest, || farthest_update(&points, points[c], s, &mut b, &mut o));
+                assert_eq!((got, &b, &o), (far, &want_best, &want_owner), "widest {widest}, step {s}");
             }
+            (best, owner) = (want_best, want_owner);
         }
     }
 }

@@ -135,6 +135,19 @@ fn anchored_distortion(dx: &Mat<f64>, dy: &Mat<f64>, anchors: &[usize]) -> f64 {
     }
 }
 
+/// cost_r += |t − d_r| for every anchor r (f32; each entry its own sum, in the callers' order).
+#[inline(always)]
+fn add_abs_differences_generic(cost: &mut [f32], t: f32, d: &[f32]) {
+    for (c, d) in cost.iter_mut().zip(d) {
+        *c += (t - d).abs();
+    }
+}
+
+crate::linalg::at_vector_width! {
+    /// [`add_abs_differences_generic`] at the CPU's vector width.
+    fn add_abs_differences(cost: &mut [f32], t: f32, d: &[f32]) = add_abs_differences_generic
+}
+
 /// One round of the correction (module docs): for every sample i of X the anchor a of Y
 /// minimizing its cost in the energy J of [`correct`],
 /// mean_{j≠i} |d_X(s_i, s_j) − d_Y(a, π(s_j))| / δ̄ + ‖F(s_i) − G(a)‖ / σ̄,
@@ -164,9 +177,7 @@ fn trilaterate(
                 pairs += 1;
                 let t = t as f32;
                 // Column cj: the distances of every anchor to the image of sample j.
-                for (c, d) in cost.iter_mut().zip(&dy[cj * a..(cj + 1) * a]) {
-                    *c += (t - d).abs();
-                }
+                add_abs_differences(&mut cost, t, &dy[cj * a..(cj + 1) * a]);
             }
             let geo = 1.0 / (pairs.max(1) as f64 * scales.0);
             let mut best = (f64::INFINITY, current[i]);
@@ -575,5 +586,17 @@ mod tests {
         let r = crate::matching::partial::estimate_ratio(&side, &side, 0.6, 5).unwrap();
         assert!((r - 1.0).abs() < 0.05, "area ratio {r}");
         assert!(seeded_maps(&side, &side, None, 4, 0, 0.1, 5).unwrap().is_empty());
+    }
+
+    /// cost += |t − d| entry by entry, the same bits at every vector width.
+    #[test]
+    fn abs_differences_are_the_same_at_every_vector_width() {
+        let d: Vec<f32> = (0..53).map(|i| (i as f32 * 0.37).sin() * 3.0).collect();
+        let want: Vec<f32> = d.iter().map(|&x| 1.5 + (0.25f32 - x).abs()).collect();
+        for widest in 0..=2 {
+            let mut cost = vec![1.5f32; d.len()];
+            crate::linalg::with_widest(widest, || add_abs_differences(&mut cost, 0.25, &d));
+            assert_eq!(cost, want, "widest {widest}");
+        }
     }
 }
