@@ -61,6 +61,7 @@
 //! is why f64 stays the default.
 
 use faer::linalg::matmul::matmul;
+use faer::reborrow::ReborrowMut;
 use faer::{Accum, Mat, MatRef, Par};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -190,21 +191,10 @@ fn soft_abs_generic(t: &mut Mat<f64>, xi: f64, r0: usize, w: Option<Weights>, gr
     total
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn soft_abs_avx2(t: &mut Mat<f64>, xi: f64, r0: usize, w: Option<Weights>, grad: bool) -> f64 {
-    soft_abs_generic(t, xi, r0, w, grad)
-}
-
-/// [`soft_abs_generic`], compiled for AVX2 when the CPU has it (the crate is built for the
-/// baseline x86-64, whose SSE2 vectors are half as wide).
-fn soft_abs(t: &mut Mat<f64>, xi: f64, r0: usize, w: Option<Weights>, grad: bool) -> f64 {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-        // SAFETY: the CPU supports AVX2 and FMA, checked just above.
-        return unsafe { soft_abs_avx2(t, xi, r0, w, grad) };
-    }
-    soft_abs_generic(t, xi, r0, w, grad)
+crate::linalg::at_vector_width! {
+    /// [`soft_abs_generic`] at the CPU's vector width (the crate is built for the baseline
+    /// x86-64, whose SSE2 vectors hold two f64).
+    fn soft_abs(t: &mut Mat<f64>, xi: f64, r0: usize, w: Option<Weights>, grad: bool) -> f64 = soft_abs_generic
 }
 
 /// [`soft_abs_generic`] on a block of T held in f32: each t is widened to f64, √(t² + ξ) and the
@@ -270,20 +260,9 @@ fn soft_abs32_generic(t: &mut Mat<f32>, xi: f64, r0: usize, w: Option<Weights>, 
     total
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn soft_abs32_avx2(t: &mut Mat<f32>, xi: f64, r0: usize, w: Option<Weights>, grad: bool) -> f64 {
-    soft_abs32_generic(t, xi, r0, w, grad)
-}
-
-/// [`soft_abs32_generic`], compiled for AVX2 when the CPU has it.
-fn soft_abs32(t: &mut Mat<f32>, xi: f64, r0: usize, w: Option<Weights>, grad: bool) -> f64 {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-        // SAFETY: the CPU supports AVX2 and FMA, checked just above.
-        return unsafe { soft_abs32_avx2(t, xi, r0, w, grad) };
-    }
-    soft_abs32_generic(t, xi, r0, w, grad)
+crate::linalg::at_vector_width! {
+    /// [`soft_abs32_generic`] at the CPU's vector width.
+    fn soft_abs32(t: &mut Mat<f32>, xi: f64, r0: usize, w: Option<Weights>, grad: bool) -> f64 = soft_abs32_generic
 }
 
 /// Contiguous ranges of row blocks, one per group.
@@ -408,18 +387,55 @@ fn partials_f64(
         .collect()
 }
 
-/// Rounds to f32.
+/// Rounds to f32 (column by column, at the CPU's vector width).
 fn to_f32(a: MatRef<f64>) -> Mat<f32> {
-    Mat::from_fn(a.nrows(), a.ncols(), |i, j| a[(i, j)] as f32)
-}
-
-/// `acc` += `part`, widened to f64.
-fn add_widened(mut acc: faer::MatMut<f64>, part: MatRef<f32>) {
-    for j in 0..acc.ncols() {
-        for i in 0..acc.nrows() {
-            acc[(i, j)] += part[(i, j)] as f64;
+    let mut out = Mat::<f32>::zeros(a.nrows(), a.ncols());
+    for j in 0..a.ncols() {
+        let dst = out.col_as_slice_mut(j);
+        match a.col(j).try_as_col_major() {
+            Some(col) => round_to_f32(dst, col.as_slice()),
+            None => dst.iter_mut().enumerate().for_each(|(i, x)| *x = a[(i, j)] as f32),
         }
     }
+    out
+}
+
+#[inline(always)]
+fn round_to_f32_generic(dst: &mut [f32], src: &[f64]) {
+    for (d, &s) in dst.iter_mut().zip(src) {
+        *d = s as f32;
+    }
+}
+
+crate::linalg::at_vector_width! {
+    /// `dst` = `src` rounded to f32, entry by entry.
+    fn round_to_f32(dst: &mut [f32], src: &[f64]) = round_to_f32_generic
+}
+
+/// `acc` += `part`, widened to f64 (column by column, at the CPU's vector width).
+fn add_widened(mut acc: faer::MatMut<f64>, part: MatRef<f32>) {
+    for j in 0..acc.ncols() {
+        match (acc.rb_mut().col_mut(j).try_as_col_major_mut(), part.col(j).try_as_col_major()) {
+            (Some(a), Some(p)) => add_widened_slice(a.as_slice_mut(), p.as_slice()),
+            _ => {
+                for i in 0..acc.nrows() {
+                    acc[(i, j)] += part[(i, j)] as f64;
+                }
+            }
+        }
+    }
+}
+
+#[inline(always)]
+fn add_widened_slice_generic(acc: &mut [f64], part: &[f32]) {
+    for (a, &p) in acc.iter_mut().zip(part) {
+        *a += p as f64;
+    }
+}
+
+crate::linalg::at_vector_width! {
+    /// `acc` += `part` widened to f64, entry by entry.
+    fn add_widened_slice(acc: &mut [f64], part: &[f32]) = add_widened_slice_generic
 }
 
 /// `dst` (f64) = `s` · `p`, with the sum over the columns of `s` (rows of `p`) formed in f32 over
@@ -719,6 +735,46 @@ mod tests {
                 assert!((val - value).abs() <= value_bound);
                 // Deterministic: the same bits again.
                 assert_eq!(f(products).projected.unwrap(), *got);
+            }
+        }
+    }
+
+    /// The smoothed |·| of a block (f64 and f32 blocks, with and without weights and gradient)
+    /// is the same bits at every vector width.
+    #[test]
+    fn soft_abs_is_the_same_at_every_vector_width() {
+        let (len, n) = (29, 13);
+        let t = Mat::from_fn(len, n, |i, j| ((i * 7 + j * 3) as f64 * 0.61).sin() * 0.2);
+        let (wy, wx): (Vec<f64>, Vec<f64>) =
+            ((0..len + 5).map(|i| 1.0 + 0.1 * i as f64).collect(), (0..n).map(|j| 0.5 + 0.05 * j as f64).collect());
+        for w in [None, Some(Weights { y: &wy, x: &wx })] {
+            for grad in [false, true] {
+                let run64 = |widest: u8| {
+                    let mut b = t.clone();
+                    let v = crate::linalg::with_widest(widest, || soft_abs(&mut b, 1e-2, 5, w, grad));
+                    (
+                        v.to_bits(),
+                        (0..n)
+                            .flat_map(|j| (0..len).map(move |i| (i, j)))
+                            .map(|(i, j)| b[(i, j)].to_bits())
+                            .collect::<Vec<_>>(),
+                    )
+                };
+                let run32 = |widest: u8| {
+                    let mut b = Mat::<f32>::from_fn(len, n, |i, j| t[(i, j)] as f32);
+                    let v = crate::linalg::with_widest(widest, || soft_abs32(&mut b, 1e-2, 5, w, grad));
+                    (
+                        v.to_bits(),
+                        (0..n)
+                            .flat_map(|j| (0..len).map(move |i| (i, j)))
+                            .map(|(i, j)| b[(i, j)].to_bits())
+                            .collect::<Vec<_>>(),
+                    )
+                };
+                for widest in 1..=2 {
+                    assert_eq!(run64(widest), run64(0), "f64, widest {widest}");
+                    assert_eq!(run32(widest), run32(0), "f32, widest {widest}");
+                }
             }
         }
     }
