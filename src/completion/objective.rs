@@ -274,30 +274,43 @@ fn c_terms(
     b: MatRef<f64>,
     with_l1: bool,
 ) -> (Terms, Mat<f64>) {
-    let c = super::mul(a, b.transpose());
-    let (data, mut z) = terms::data_c(c.as_ref(), problem.f_hat.as_ref(), problem.g_hat.as_ref());
-    let mut t = Terms { data, ..Terms::default() };
-    let mut add = |w: f64, (value, g): (f64, Mat<f64>)| -> f64 {
-        z += &g * w;
-        w * value
+    // The L1 term (both cores inside) side by side with the terms of C, which run on one core;
+    // its gradient is added last, as before.
+    let l1 = || {
+        (with_l1 && params.mu3 != 0.0).then(|| {
+            let (phi, psi, weights) = problem.l1_operands();
+            terms::l1_c(a, b, phi, psi, params.xi, weights, params.block_rows, params.l1_precision)
+        })
     };
-    if params.mu1 != 0.0 {
-        t.dirichlet_x = add(params.mu1, terms::dirichlet_x_c(c.as_ref(), &problem.lambda_x));
-    }
-    if params.mu2 != 0.0 {
-        t.dirichlet_y = add(params.mu2, terms::dirichlet_y_c(c.as_ref(), &problem.lambda_y));
-    }
-    if params.mu_comm != 0.0 {
-        let (lx, ly, kc) = comm_setup(problem, params);
-        t.commutativity = add(params.mu_comm, terms::commutativity_c(c.as_ref(), &lx, &ly, kc));
-    }
-    if let (true, Some(e)) = (params.mu_prior != 0.0, &problem.prior) {
-        t.prior = add(params.mu_prior, terms::prior_c(c.as_ref(), e, problem.c_scale));
-    }
-    if with_l1 && params.mu3 != 0.0 {
-        let (phi, psi, weights) = problem.l1_operands();
-        let l1 = terms::l1_c(a, b, phi, psi, params.xi, weights, params.block_rows, params.l1_precision);
-        t.l1 = add(params.mu3, l1);
+    let ((mut t, mut z), l1) = rayon::join(
+        || {
+            let c = super::mul(a, b.transpose());
+            let (data, mut z) = terms::data_c(c.as_ref(), problem.f_hat.as_ref(), problem.g_hat.as_ref());
+            let mut t = Terms { data, ..Terms::default() };
+            let mut add = |w: f64, (value, g): (f64, Mat<f64>)| -> f64 {
+                z += &g * w;
+                w * value
+            };
+            if params.mu1 != 0.0 {
+                t.dirichlet_x = add(params.mu1, terms::dirichlet_x_c(c.as_ref(), &problem.lambda_x));
+            }
+            if params.mu2 != 0.0 {
+                t.dirichlet_y = add(params.mu2, terms::dirichlet_y_c(c.as_ref(), &problem.lambda_y));
+            }
+            if params.mu_comm != 0.0 {
+                let (lx, ly, kc) = comm_setup(problem, params);
+                t.commutativity = add(params.mu_comm, terms::commutativity_c(c.as_ref(), &lx, &ly, kc));
+            }
+            if let (true, Some(e)) = (params.mu_prior != 0.0, &problem.prior) {
+                t.prior = add(params.mu_prior, terms::prior_c(c.as_ref(), e, problem.c_scale));
+            }
+            (t, z)
+        },
+        l1,
+    );
+    if let Some((value, g)) = l1 {
+        z += &g * params.mu3;
+        t.l1 = params.mu3 * value;
     }
     (t, z)
 }

@@ -158,8 +158,7 @@ pub fn l1(
         let (value, z) = l1_c(a, b, phi, psi, xi, weights, block_rows, precision);
         chain_c(value, z.as_ref(), a, b)
     } else {
-        let u = gemm_nn(psi, a); // m × k
-        let v = gemm_nn(phi, b); // n × k
+        let (u, v) = rayon::join(|| gemm_nn(psi, a), || gemm_nn(phi, b)); // m × k, n × k
         let r = soft_l1(
             u.as_ref(),
             v.as_ref(),
@@ -169,8 +168,8 @@ pub fn l1(
             Products::Factored { pu: u.as_ref(), pv: v.as_ref() },
             precision,
         );
-        let grad_a = gemm_tn(psi, r.s_pv.expect("requested").as_ref());
-        let grad_b = gemm_tn(phi, r.st_pu.expect("requested").as_ref());
+        let (s_pv, st_pu) = (r.s_pv.expect("requested"), r.st_pu.expect("requested"));
+        let (grad_a, grad_b) = rayon::join(|| gemm_tn(psi, s_pv.as_ref()), || gemm_tn(phi, st_pu.as_ref()));
         TermValue { value: r.value, grad_a, grad_b }
     }
 }
@@ -187,8 +186,8 @@ pub fn l1_c(
     block_rows: usize,
     precision: Precision,
 ) -> (f64, Mat<f64>) {
-    let u = gemm_nn(psi, a);
-    let v = gemm_nn(phi, b);
+    // U = Ψ A and V = Φ B side by side (each a sequential GEMM below 4096 sample rows).
+    let (u, v) = rayon::join(|| gemm_nn(psi, a), || gemm_nn(phi, b));
     let r = soft_l1(u.as_ref(), v.as_ref(), xi, weights, block_rows, Products::Projected { psi, phi }, precision);
     (r.value, r.projected.expect("requested"))
 }
@@ -205,8 +204,8 @@ pub fn l1_value(
     block_rows: usize,
     precision: Precision,
 ) -> f64 {
-    let u = gemm_nn(psi, a);
-    let v = gemm_nn(phi, b);
+    // U = Ψ A and V = Φ B side by side (each a sequential GEMM below 4096 sample rows).
+    let (u, v) = rayon::join(|| gemm_nn(psi, a), || gemm_nn(phi, b));
     soft_l1(u.as_ref(), v.as_ref(), xi, weights, block_rows, Products::Value, precision).value
 }
 
