@@ -90,6 +90,121 @@ pub(crate) fn with_widest<R>(widest: u8, f: impl FnOnce() -> R) -> R {
     r
 }
 
+/// The rows `rows` of the columns `cols` of X, each column scaled by `scale` (r × #cols, r =
+/// `rows.len()`; entry (s, a) = scale · x[rows[s], cols.start + a]), built column by column.
+/// Exactly the entries of the element-by-element gather (a copy, or one product by `scale`).
+pub fn gather_rows(x: MatRef<f64>, rows: &[usize], cols: std::ops::Range<usize>, scale: f64) -> Mat<f64> {
+    let mut out = Mat::<f64>::zeros(rows.len(), cols.len());
+    for (a, c) in cols.enumerate() {
+        let dst = out.col_as_slice_mut(a);
+        match x.col(c).try_as_col_major() {
+            Some(col) => {
+                let src = col.as_slice();
+                if scale == 1.0 {
+                    dst.iter_mut().zip(rows).for_each(|(d, &r)| *d = src[r]);
+                } else {
+                    dst.iter_mut().zip(rows).for_each(|(d, &r)| *d = scale * src[r]);
+                }
+            }
+            None if scale == 1.0 => dst.iter_mut().zip(rows).for_each(|(d, &r)| *d = x[(r, c)]),
+            None => dst.iter_mut().zip(rows).for_each(|(d, &r)| *d = scale * x[(r, c)]),
+        }
+    }
+    out
+}
+
+/// X (m × d) rounded to f32, column by column at the CPU's vector width.
+pub fn round_to_f32(x: MatRef<f64>) -> Mat<f32> {
+    let mut out = Mat::<f32>::zeros(x.nrows(), x.ncols());
+    for j in 0..x.ncols() {
+        let dst = out.col_as_slice_mut(j);
+        match x.col(j).try_as_col_major() {
+            Some(col) => round_slice_to_f32(dst, col.as_slice()),
+            None => dst.iter_mut().enumerate().for_each(|(i, v)| *v = x[(i, j)] as f32),
+        }
+    }
+    out
+}
+
+#[inline(always)]
+fn round_slice_to_f32_generic(dst: &mut [f32], src: &[f64]) {
+    for (d, &s) in dst.iter_mut().zip(src) {
+        *d = s as f32;
+    }
+}
+
+at_vector_width! {
+    /// `dst` = `src` rounded to f32, entry by entry.
+    fn round_slice_to_f32(dst: &mut [f32], src: &[f64]) = round_slice_to_f32_generic
+}
+
+/// The squared norm Σ_c x_jc² of every row of X (m × d, length m), each summed over the
+/// columns in order (the same bits as a row-by-row sum), accumulated column by column so that
+/// the loads are contiguous and vectorize.
+pub fn row_squared_norms(x: MatRef<f64>) -> Vec<f64> {
+    let mut sq = vec![0.0; x.nrows()];
+    for j in 0..x.ncols() {
+        match x.col(j).try_as_col_major() {
+            Some(col) => add_squares(&mut sq, col.as_slice()),
+            None => sq.iter_mut().enumerate().for_each(|(i, v)| *v += x[(i, j)].powi(2)),
+        }
+    }
+    sq
+}
+
+#[inline(always)]
+fn add_squares_generic(acc: &mut [f64], x: &[f64]) {
+    for (a, &v) in acc.iter_mut().zip(x) {
+        *a += v.powi(2);
+    }
+}
+
+at_vector_width! {
+    /// `acc` += x², entry by entry.
+    fn add_squares(acc: &mut [f64], x: &[f64]) = add_squares_generic
+}
+
+/// The largest |x_ij| of X, or `None` when an entry is not finite.
+pub fn max_abs_finite(x: MatRef<f64>) -> Option<f64> {
+    let mut max = 0.0f64;
+    for j in 0..x.ncols() {
+        let m = match x.col(j).try_as_col_major() {
+            Some(col) => max_abs_slice(col.as_slice()),
+            None => (0..x.nrows()).map(|i| x[(i, j)].abs()).fold(0.0, |m, v| if v > m || v.is_nan() { v } else { m }),
+        };
+        // NaN and ∞ both fail this test.
+        if !m.is_finite() {
+            return None;
+        }
+        max = max.max(m);
+    }
+    Some(max)
+}
+
+#[inline(always)]
+fn max_abs_slice_generic(x: &[f64]) -> f64 {
+    // Eight running maxima (compare-and-select); a NaN is carried as +∞ so that it is seen.
+    let mut lanes = [0.0f64; 8];
+    let chunks = x.chunks_exact(8);
+    let mut tail = 0.0f64;
+    for &v in chunks.remainder() {
+        let a = if v.is_nan() { f64::INFINITY } else { v.abs() };
+        tail = if a > tail { a } else { tail };
+    }
+    for c in chunks {
+        for l in 0..8 {
+            let a = if c[l].is_nan() { f64::INFINITY } else { c[l].abs() };
+            lanes[l] = if a > lanes[l] { a } else { lanes[l] };
+        }
+    }
+    lanes.iter().fold(tail, |m, &v| if v > m { v } else { m })
+}
+
+at_vector_width! {
+    /// The largest |x_i| (+∞ when an entry is NaN or infinite).
+    fn max_abs_slice(x: &[f64]) -> f64 = max_abs_slice_generic
+}
+
 /// The minimum-norm solution X = H⁺ B of a symmetric positive semi-definite system (H k × k,
 /// B k × r) from the eigendecomposition of H: eigenvalues at or below k ε max|λ| count as zero.
 /// The fallback of the Cholesky solves when H is singular. `what` names the caller in errors.

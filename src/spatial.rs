@@ -430,21 +430,19 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
     if m == 0 {
         return Err(Error::invalid("embedding", "the reference set is empty"));
     }
-    let finite = |x: MatRef<f64>| (0..x.ncols()).all(|j| (0..x.nrows()).all(|i| x[(i, j)].is_finite()));
-    if !finite(reference) || !finite(query) {
+    use crate::linalg::{max_abs_finite, round_to_f32, row_squared_norms};
+    let (Some(max_ref), Some(max_query)) = (max_abs_finite(reference), max_abs_finite(query)) else {
         return Err(Error::invalid("embedding", "it contains a non-finite value"));
-    }
+    };
     // Values beyond f32's range cannot be screened in single precision.
-    let max_abs =
-        |x: MatRef<f64>| (0..x.ncols()).flat_map(|j| (0..x.nrows()).map(move |i| x[(i, j)].abs())).fold(0.0, f64::max);
-    if max_abs(reference).max(max_abs(query)) > MAX_EMBEDDING {
+    if max_ref.max(max_query) > MAX_EMBEDDING {
         return Err(Error::invalid("embedding", "a value exceeds 1e30 in magnitude"));
     }
-    let row_sq = |x: MatRef<f64>, j: usize| (0..d).map(|c| x[(j, c)].powi(2)).sum::<f64>();
-    let ref_norm: Vec<f64> = if euclidean { (0..m).map(|j| row_sq(reference, j)).collect() } else { vec![0.0; m] };
-    let ref_len: Vec<f64> = (0..m).map(|j| row_sq(reference, j).sqrt()).collect();
+    let ref_sq = row_squared_norms(reference);
+    let ref_len: Vec<f64> = ref_sq.iter().map(|v| v.sqrt()).collect();
+    let ref_norm: Vec<f64> = if euclidean { ref_sq } else { vec![0.0; m] };
     let eps = SCREEN_SAFETY * (d as f64 + 3.0) * f32::EPSILON as f64 / 2.0;
-    let reference32 = Mat::<f32>::from_fn(m, d, |i, j| reference[(i, j)] as f32);
+    let reference32 = round_to_f32(reference);
     let n = query.nrows();
     let starts: Vec<usize> = (0..n).step_by(QUERY_BLOCK).collect();
     let blocks: Vec<Vec<usize>> = starts
@@ -455,9 +453,9 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
             }
             let len = QUERY_BLOCK.min(n - r0);
             let q = query.subrows(r0, len);
-            let q32 = Mat::<f32>::from_fn(len, d, |i, j| q[(i, j)] as f32);
+            let q32 = round_to_f32(q);
             // 2 ε ‖q‖: the bound on the error of −2 q·r_j is this times ‖r_j‖.
-            let scale: Vec<f64> = (0..len).map(|i| 2.0 * eps * row_sq(q, i).sqrt()).collect();
+            let scale: Vec<f64> = row_squared_norms(q).iter().map(|v| 2.0 * eps * v.sqrt()).collect();
             // The reference rows in chunks, so that the block of products stays in cache.
             let mut best_hi = vec![f64::INFINITY; len];
             let mut cands: Vec<Vec<(f64, usize)>> = vec![Vec::new(); len];

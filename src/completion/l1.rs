@@ -389,27 +389,7 @@ fn partials_f64(
 
 /// Rounds to f32 (column by column, at the CPU's vector width).
 fn to_f32(a: MatRef<f64>) -> Mat<f32> {
-    let mut out = Mat::<f32>::zeros(a.nrows(), a.ncols());
-    for j in 0..a.ncols() {
-        let dst = out.col_as_slice_mut(j);
-        match a.col(j).try_as_col_major() {
-            Some(col) => round_to_f32(dst, col.as_slice()),
-            None => dst.iter_mut().enumerate().for_each(|(i, x)| *x = a[(i, j)] as f32),
-        }
-    }
-    out
-}
-
-#[inline(always)]
-fn round_to_f32_generic(dst: &mut [f32], src: &[f64]) {
-    for (d, &s) in dst.iter_mut().zip(src) {
-        *d = s as f32;
-    }
-}
-
-crate::linalg::at_vector_width! {
-    /// `dst` = `src` rounded to f32, entry by entry.
-    fn round_to_f32(dst: &mut [f32], src: &[f64]) = round_to_f32_generic
+    crate::linalg::round_to_f32(a)
 }
 
 /// `acc` += `part`, widened to f64 (column by column, at the CPU's vector width).

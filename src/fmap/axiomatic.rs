@@ -191,8 +191,12 @@ fn fit_sizes(
             ),
         ));
     }
-    let sx = spectral_side(x, k, comm, orient, opts.unit_gradients, x_name)?;
-    let sy = spectral_side(y, k, comm, orient, opts.unit_gradients, y_name)?;
+    // The two sides side by side (their face gradients and means are sequential).
+    let (sx, sy) = rayon::join(
+        || spectral_side(x, k, comm, orient, opts.unit_gradients, x_name),
+        || spectral_side(y, k, comm, orient, opts.unit_gradients, y_name),
+    );
+    let (sx, sy) = (sx?, sy?);
     ks.par_iter()
         .map(|&k| {
             crate::progress::check()?;

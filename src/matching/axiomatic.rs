@@ -277,8 +277,11 @@ fn pipeline_data(
     }
     // Twice as many candidates as wanted, of which the first usable ones are kept.
     let pairs = descriptors::signed_pairs(fx.q(), 2 * p.signed);
-    let sx = descriptors::signed(&fx, grads_x, &x.basis, &pairs, p.signed_smoothing)?;
-    let sy = descriptors::signed(&gy, grads_y, &y.basis, &pairs, p.signed_smoothing)?;
+    let (sx, sy) = rayon::join(
+        || descriptors::signed(&fx, grads_x, &x.basis, &pairs, p.signed_smoothing),
+        || descriptors::signed(&gy, grads_y, &y.basis, &pairs, p.signed_smoothing),
+    );
+    let (sx, sy) = (sx?, sy?);
     let norm = |d: &Descriptors, mass: &[f64], j: usize| {
         d.values.col_as_slice(j).iter().zip(mass).map(|(v, a)| a * v * v).sum::<f64>().sqrt()
     };
@@ -751,12 +754,13 @@ fn refine_from(
     }
     // Samples computed once for ZoomOut (or its bijective variant) and the polish.
     let pw = p.landmarks.pin_weight;
-    let sx = landmarks::with_landmarks(samples_of(x, p.refine.samples)?, &lm_x, pw);
-    let sy = if p.bijective > 0.0 || p.polish > 0 {
-        Some(landmarks::with_landmarks(samples_of(y, p.refine.samples)?, &lm_y, pw))
-    } else {
-        None
-    };
+    // The two shapes' farthest-point samples (sequential each) side by side.
+    let (sx, sy) = rayon::join(
+        || samples_of(x, p.refine.samples),
+        || (p.bijective > 0.0 || p.polish > 0).then(|| samples_of(y, p.refine.samples)).transpose(),
+    );
+    let sx = landmarks::with_landmarks(sx?, &lm_x, pw);
+    let sy = sy?.map(|s| landmarks::with_landmarks(s, &lm_y, pw));
     let (c, map) = match &sy {
         Some(sy) if p.bijective > 0.0 => {
             let o = refine::BijectiveOptions {

@@ -220,9 +220,25 @@ fn mean_descriptor_misfit(desc: &Mat<f64>, anchors: &[usize]) -> f64 {
 /// The descriptor distances ‖F(s_i) − G(a)‖ (s × a) between X's samples and Y's anchors, from
 /// descriptors F (n × q) on X and G (m × q) on Y.
 pub fn descriptor_distances(x: &SampleDistances, y: &SampleDistances, f: MatRef<f64>, g: MatRef<f64>) -> Mat<f64> {
+    use rayon::prelude::*;
     let q = f.ncols().min(g.ncols());
     let (xs, ys) = (&x.samples.vertices, &y.samples.vertices);
-    Mat::from_fn(xs.len(), ys.len(), |i, a| (0..q).map(|c| (f[(xs[i], c)] - g[(ys[a], c)]).powi(2)).sum::<f64>().sqrt())
+    if q == 0 {
+        return Mat::zeros(xs.len(), ys.len());
+    }
+    // The samples' rows, contiguous (row-major), then the columns of the result in parallel.
+    let rows = |m: MatRef<f64>, vs: &[usize]| -> Vec<f64> {
+        vs.iter().flat_map(|&v| (0..q).map(move |c| m[(v, c)])).collect()
+    };
+    let (fr, gr) = (rows(f, xs), rows(g, ys));
+    let cols: Vec<Vec<f64>> = (0..ys.len())
+        .into_par_iter()
+        .map(|a| {
+            let ga = &gr[a * q..(a + 1) * q];
+            fr.chunks_exact(q).map(|fi| fi.iter().zip(ga).map(|(u, v)| (u - v).powi(2)).sum::<f64>().sqrt()).collect()
+        })
+        .collect();
+    Mat::from_fn(xs.len(), ys.len(), |i, a| cols[a][i])
 }
 
 /// The a × a anchor distances as f32, column-major, ∞ (other components) replaced by ten times

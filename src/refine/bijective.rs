@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use super::pullback::{rows_near, sample_images_near, Near, Scope};
 use crate::error::{Error, Result};
-use crate::linalg::mul;
+use crate::linalg::{gather_rows, mul};
 use crate::pointwise::nearest_neighbors;
 use crate::spatial::Samples;
 
@@ -112,20 +112,33 @@ fn bijective_embeddings(
     let k = c_yx.nrows();
     let (phi, psi) = (phi.subcols(0, k), psi.subcols(0, k));
     let sw = w.sqrt();
-    let (psi_ct, phi_c, psi_b) = (mul(psi, c_yx.transpose()), mul(phi, c_yx), mul(psi, c_xy));
-    let reference = Mat::from_fn(refs.len(), 3 * k, |t, a| {
-        let j = refs[t];
-        match a / k {
-            0 => psi_ct[(j, a)],
-            1 => psi[(j, a - k)],
-            _ => sw * psi_b[(j, a - 2 * k)],
+    // The three products side by side (each sequential), then the rows gathered column by
+    // column: the same entries as gathering them one by one.
+    let ((psi_ct, phi_c), psi_b) =
+        rayon::join(|| rayon::join(|| mul(psi, c_yx.transpose()), || mul(phi, c_yx)), || mul(psi, c_xy));
+    let stack = |parts: [Mat<f64>; 3]| {
+        let mut out = Mat::<f64>::zeros(parts[0].nrows(), 3 * k);
+        for (i, p) in parts.iter().enumerate() {
+            out.as_mut().subcols_mut(i * k, k).copy_from(p);
         }
-    });
-    let query = Mat::from_fn(rows.len(), 3 * k, |s, a| match a / k {
-        0 => phi[(rows[s], a)],
-        1 => phi_c[(rows[s], a - k)],
-        _ => sw * phi[(rows[s], a - 2 * k)],
-    });
+        out
+    };
+    let (reference, query) = rayon::join(
+        || {
+            stack([
+                gather_rows(psi_ct.as_ref(), refs, 0..k, 1.0),
+                gather_rows(psi, refs, 0..k, 1.0),
+                gather_rows(psi_b.as_ref(), refs, 0..k, sw),
+            ])
+        },
+        || {
+            stack([
+                gather_rows(phi, rows, 0..k, 1.0),
+                gather_rows(phi_c.as_ref(), rows, 0..k, 1.0),
+                gather_rows(phi, rows, 0..k, sw),
+            ])
+        },
+    );
     (reference, query)
 }
 

@@ -5,7 +5,7 @@
 use faer::{Mat, MatRef, Side};
 
 use crate::error::{Error, Result};
-use crate::linalg::mul;
+use crate::linalg::{gather_rows, mul};
 use crate::pointwise::{nearest_neighbors, nearest_neighbors_near_rows, CoarseMap};
 use crate::spatial::Samples;
 
@@ -32,11 +32,11 @@ pub fn pullback(
         return Err(Error::invalid("map", "a vertex id is out of range"));
     }
     let ns = samples.len();
-    let wphi = Mat::from_fn(ns, kx, |s, a| samples.weights[s] * phi[(samples.vertices[s], a)]);
-    let psi_pi = Mat::from_fn(ns, ky, |s, b| psi[(map_on_samples[s], b)]);
-    let rhs = mul(wphi.transpose(), psi_pi.as_ref());
-    let phi_s = Mat::from_fn(ns, kx, |s, a| phi[(samples.vertices[s], a)]);
-    let gram = mul(wphi.transpose(), phi_s.as_ref());
+    let phi_s = gather_rows(phi, &samples.vertices, 0..kx, 1.0);
+    let psi_pi = gather_rows(psi, map_on_samples, 0..ky, 1.0);
+    let wphi = Mat::from_fn(ns, kx, |s, a| samples.weights[s] * phi_s[(s, a)]);
+    // The right-hand side and the Gram matrix side by side (each one sequential product).
+    let (rhs, gram) = rayon::join(|| mul(wphi.transpose(), psi_pi.as_ref()), || mul(wphi.transpose(), phi_s.as_ref()));
     let llt = gram.llt(Side::Lower).map_err(|_| {
         Error::numerical(
             "pullback",
