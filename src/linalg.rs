@@ -113,6 +113,33 @@ pub fn gather_rows(x: MatRef<f64>, rows: &[usize], cols: std::ops::Range<usize>,
     out
 }
 
+/// diag(w) X (m × d, `w` of length m): every row of X times its weight, column by column at the
+/// CPU's vector width.
+pub fn scale_rows(x: MatRef<f64>, w: &[f64]) -> Mat<f64> {
+    debug_assert_eq!(x.nrows(), w.len());
+    let mut out = Mat::<f64>::zeros(x.nrows(), x.ncols());
+    for j in 0..x.ncols() {
+        let dst = out.col_as_slice_mut(j);
+        match x.col(j).try_as_col_major() {
+            Some(col) => scale_slice(dst, w, col.as_slice()),
+            None => dst.iter_mut().enumerate().for_each(|(i, v)| *v = w[i] * x[(i, j)]),
+        }
+    }
+    out
+}
+
+#[inline(always)]
+fn scale_slice_generic(dst: &mut [f64], w: &[f64], x: &[f64]) {
+    for ((d, &a), &b) in dst.iter_mut().zip(w).zip(x) {
+        *d = a * b;
+    }
+}
+
+at_vector_width! {
+    /// `dst` = `w` · `x`, entry by entry.
+    fn scale_slice(dst: &mut [f64], w: &[f64], x: &[f64]) = scale_slice_generic
+}
+
 /// X (m × d) rounded to f32, column by column at the CPU's vector width.
 pub fn round_to_f32(x: MatRef<f64>) -> Mat<f32> {
     let mut out = Mat::<f32>::zeros(x.nrows(), x.ncols());

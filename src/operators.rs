@@ -218,7 +218,9 @@ pub fn multiplication_operators(phi: MatRef<f64>, mass: &[f64], f: MatRef<f64>) 
     Ok((0..f.ncols())
         .into_par_iter()
         .map(|p| {
-            let weighted = Mat::from_fn(n, k, |i, a| mass[i] * f[(i, p)] * phi[(i, a)]);
+            // (A f_p)_i φ_a(i), as (mass_i f_p(i)) φ_a(i).
+            let af: Vec<f64> = (0..n).map(|i| mass[i] * f[(i, p)]).collect();
+            let weighted = crate::linalg::scale_rows(phi, &af);
             let mut d = Mat::<f64>::zeros(k, k);
             matmul(d.as_mut(), Accum::Replace, phi.transpose(), weighted.as_ref(), 1.0, Par::Seq);
             // Exact symmetry (the two products round differently).
