@@ -19,7 +19,7 @@
 //! paths would change the eigenbases and every result downstream in the last bits.
 
 use faer::linalg::matmul::matmul;
-use faer::reborrow::Reborrow;
+use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
@@ -95,8 +95,16 @@ pub(crate) fn with_widest<R>(widest: u8, f: impl FnOnce() -> R) -> R {
 /// Exactly the entries of the element-by-element gather (a copy, or one product by `scale`).
 pub fn gather_rows(x: MatRef<f64>, rows: &[usize], cols: std::ops::Range<usize>, scale: f64) -> Mat<f64> {
     let mut out = Mat::<f64>::zeros(rows.len(), cols.len());
+    gather_rows_into(out.as_mut(), x, rows, cols, scale);
+    out
+}
+
+/// [`gather_rows`] into `out` (r × #cols, column-major).
+pub fn gather_rows_into(mut out: MatMut<f64>, x: MatRef<f64>, rows: &[usize], cols: std::ops::Range<usize>, scale: f64) {
+    debug_assert_eq!((out.nrows(), out.ncols()), (rows.len(), cols.len()));
     for (a, c) in cols.enumerate() {
-        let dst = out.col_as_slice_mut(a);
+        let mut dst = out.rb_mut().col_mut(a);
+        let dst = dst.rb_mut().try_as_col_major_mut().expect("output columns are contiguous").as_slice_mut();
         match x.col(c).try_as_col_major() {
             Some(col) => {
                 let src = col.as_slice();
@@ -110,7 +118,6 @@ pub fn gather_rows(x: MatRef<f64>, rows: &[usize], cols: std::ops::Range<usize>,
             None => dst.iter_mut().zip(rows).for_each(|(d, &r)| *d = scale * x[(r, c)]),
         }
     }
-    out
 }
 
 /// diag(w) X (m × d, `w` of length m): every row of X times its weight, column by column at the

@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use super::pullback::{rows_near, sample_images_near, Near, Scope};
 use crate::error::{Error, Result};
-use crate::linalg::{gather_rows, mul};
+use crate::linalg::{gather_rows_into, mul};
 use crate::pointwise::nearest_neighbors;
 use crate::spatial::Samples;
 
@@ -116,28 +116,17 @@ fn bijective_embeddings(
     // column: the same entries as gathering them one by one.
     let ((psi_ct, phi_c), psi_b) =
         rayon::join(|| rayon::join(|| mul(psi, c_yx.transpose()), || mul(phi, c_yx)), || mul(psi, c_xy));
-    let stack = |parts: [Mat<f64>; 3]| {
-        let mut out = Mat::<f64>::zeros(parts[0].nrows(), 3 * k);
-        for (i, p) in parts.iter().enumerate() {
-            out.as_mut().subcols_mut(i * k, k).copy_from(p);
+    // [first | second | sw · third] of the gathered rows, written in place.
+    let stack = |rows: &[usize], parts: [(MatRef<f64>, f64); 3]| {
+        let mut out = Mat::<f64>::zeros(rows.len(), 3 * k);
+        for (i, (p, scale)) in parts.into_iter().enumerate() {
+            gather_rows_into(out.as_mut().subcols_mut(i * k, k), p, rows, 0..k, scale);
         }
         out
     };
     let (reference, query) = rayon::join(
-        || {
-            stack([
-                gather_rows(psi_ct.as_ref(), refs, 0..k, 1.0),
-                gather_rows(psi, refs, 0..k, 1.0),
-                gather_rows(psi_b.as_ref(), refs, 0..k, sw),
-            ])
-        },
-        || {
-            stack([
-                gather_rows(phi, rows, 0..k, 1.0),
-                gather_rows(phi_c.as_ref(), rows, 0..k, 1.0),
-                gather_rows(phi, rows, 0..k, sw),
-            ])
-        },
+        || stack(refs, [(psi_ct.as_ref(), 1.0), (psi, 1.0), (psi_b.as_ref(), sw)]),
+        || stack(rows, [(phi, 1.0), (phi_c.as_ref(), 1.0), (phi, sw)]),
     );
     (reference, query)
 }
