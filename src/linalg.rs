@@ -100,7 +100,13 @@ pub fn gather_rows(x: MatRef<f64>, rows: &[usize], cols: std::ops::Range<usize>,
 }
 
 /// [`gather_rows`] into `out` (r × #cols, column-major).
-pub fn gather_rows_into(mut out: MatMut<f64>, x: MatRef<f64>, rows: &[usize], cols: std::ops::Range<usize>, scale: f64) {
+pub fn gather_rows_into(
+    mut out: MatMut<f64>,
+    x: MatRef<f64>,
+    rows: &[usize],
+    cols: std::ops::Range<usize>,
+    scale: f64,
+) {
     debug_assert_eq!((out.nrows(), out.ncols()), (rows.len(), cols.len()));
     for (a, c) in cols.enumerate() {
         let mut dst = out.rb_mut().col_mut(a);
