@@ -585,20 +585,24 @@ mod tests {
         let ref_norm: Vec<f64> = (0..w).map(|_| (next() * 32.0).floor() / 4.0).collect();
         let ref_len: Vec<f64> = ref_norm.iter().map(|v| v.sqrt()).collect();
         let scale: Vec<f64> = (0..len).map(|_| 1e-3 * next()).collect();
-        let run = |f: &dyn Fn(Chunk, &[f64], &mut [f64], &mut [Vec<(f64, usize)>])| {
+        // None: the generic function itself; Some(w): the dispatched one, limited to width w.
+        let run = |widest: Option<u8>| {
             let mut best_hi = vec![f64::INFINITY; len];
             let mut cands = vec![Vec::new(); len];
             let chunk = Chunk { dots: &dots, c0, w, ref_norm: &ref_norm, ref_len: &ref_len };
-            f(chunk, &scale, &mut best_hi, &mut cands);
+            match widest {
+                None => screen_generic(chunk, &scale, &mut best_hi, &mut cands),
+                Some(wd) => crate::linalg::with_widest(wd, || screen(chunk, &scale, &mut best_hi, &mut cands)),
+            }
             let bits: Vec<u64> = best_hi.iter().map(|v| v.to_bits()).collect();
             let cands: Vec<Vec<(u64, usize)>> =
                 cands.iter().map(|l| l.iter().map(|&(v, j)| (v.to_bits(), j)).collect()).collect();
             (bits, cands)
         };
-        let generic = run(&|c, s, b, l| screen_generic(c, s, b, l));
+        let generic = run(None);
         assert!(generic.1.iter().any(|l| l.len() > 1), "the data should leave several candidates");
         for widest in 0..=2 {
-            let dispatched = crate::linalg::with_widest(widest, || run(&|c, s, b, l| screen(c, s, b, l)));
+            let dispatched = run(Some(widest));
             assert_eq!(dispatched, generic, "widest {widest}");
         }
     }
