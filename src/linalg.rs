@@ -1,7 +1,16 @@
 //! Dense linear-algebra helpers shared by the solvers (one copy each): the small product `mul`,
 //! the Frobenius inner product `frob`, the minimum-norm solve `min_norm_solve`, and the
 //! tall-skinny products of the completion method and of the block Lanczos eigensolver (`a_b`,
-//! `a_b_into`, `at_b`, `at_b_as_bt_a`).
+//! `a_b_into`, `at_b`, `at_b_as_bt_a`), column-by-column helpers on column-major matrices
+//! (`round_to_f32`, `row_squared_norms`, `max_abs_finite`, `scale_rows`, `gather_rows`), and
+//! [`at_vector_width!`](at_vector_width) for the loops that are not faer's.
+//!
+//! **Vector width.** The crate is compiled for the baseline x86-64 (SSE2: two f64 per vector) so
+//! that one binary and one wheel run everywhere; faer's kernels choose AVX-512 or AVX2 at run
+//! time, our own loops do not. `at_vector_width!` compiles an `#[inline(always)]` function three
+//! times and picks the widest the CPU has. Since Rust neither reassociates nor contracts
+//! floating-point operations, each width computes the same bits (tests pin the width per
+//! thread and compare), so a map never depends on the machine's vector unit.
 //!
 //! **Tall-skinny products.** The long dimension n (vertices, n ≫ p, q) is split into row chunks
 //! run as rayon tasks, each a *sequential* faer GEMM: faer's own parallel GEMM spreads such
