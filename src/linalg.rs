@@ -164,27 +164,32 @@ at_vector_width! {
 
 /// X (m × d) rounded to f32, column by column at the CPU's vector width.
 pub fn round_to_f32(x: MatRef<f64>) -> Mat<f32> {
+    round_to_f32_scaled(x, 1.0)
+}
+
+/// σ X (m × d) rounded to f32 (entry by entry fl₃₂(σ x_ij); σ = 1 is [`round_to_f32`]).
+pub fn round_to_f32_scaled(x: MatRef<f64>, sigma: f64) -> Mat<f32> {
     let mut out = Mat::<f32>::zeros(x.nrows(), x.ncols());
     for j in 0..x.ncols() {
         let dst = out.col_as_slice_mut(j);
         match x.col(j).try_as_col_major() {
-            Some(col) => round_slice_to_f32(dst, col.as_slice()),
-            None => dst.iter_mut().enumerate().for_each(|(i, v)| *v = x[(i, j)] as f32),
+            Some(col) => round_slice_to_f32(dst, col.as_slice(), sigma),
+            None => dst.iter_mut().enumerate().for_each(|(i, v)| *v = (sigma * x[(i, j)]) as f32),
         }
     }
     out
 }
 
 #[inline(always)]
-fn round_slice_to_f32_generic(dst: &mut [f32], src: &[f64]) {
+fn round_slice_to_f32_generic(dst: &mut [f32], src: &[f64], sigma: f64) {
     for (d, &s) in dst.iter_mut().zip(src) {
-        *d = s as f32;
+        *d = (sigma * s) as f32;
     }
 }
 
 at_vector_width! {
-    /// `dst` = `src` rounded to f32, entry by entry.
-    fn round_slice_to_f32(dst: &mut [f32], src: &[f64]) = round_slice_to_f32_generic
+    /// `dst` = σ `src` rounded to f32, entry by entry.
+    fn round_slice_to_f32(dst: &mut [f32], src: &[f64], sigma: f64) = round_slice_to_f32_generic
 }
 
 /// The squared norm Σ_c x_jc² of every row of X (m × d, length m), each summed over the

@@ -323,9 +323,10 @@ crate::linalg::at_vector_width! {
     fn farthest_update(points: &[[f64; 3]], c: [f64; 3], s: usize, best: &mut [f64], owner: &mut [usize]) -> (usize, f64) = farthest_update_generic
 }
 
-/// The largest embedding value the nearest-neighbour searches accept (beyond it the exact
-/// search's single-precision screen overflows); [`crate::pointwise::nearest_neighbors_near_rows`]
-/// holds its input to the same bound.
+/// The largest embedding value the nearest-neighbour searches accept: their squared norms and
+/// f64 sums (d · 10⁶⁰) stay far from f64's range (the single-precision screen scales its copies
+/// into [−1, 1]); [`crate::pointwise::nearest_neighbors_near_rows`] holds its input to the same
+/// bound.
 pub(crate) const MAX_EMBEDDING: f64 = 1e30;
 
 /// Query rows per task of the nearest-neighbour search.
@@ -337,40 +338,50 @@ const REFERENCE_CHUNK: usize = 2048;
 /// Safety factor on the rounding-error bound of the single-precision screen of [`nearest_rows`].
 const SCREEN_SAFETY: f64 = 4.0;
 
+/// Relative slack of the screen's bounds rounded to f32 (round to nearest may lower them by
+/// 2⁻²⁴).
+const SLACK: f64 = 1.0 + 1.0 / (1 << 20) as f64;
+
 /// Independent lanes of the screen's vectorized test (one AVX-512 register of f64).
 const LANES: usize = 8;
 
-/// One chunk of the screen of [`best_rows`]: the single-precision products of a block of
-/// queries (rows of `dots`) with the reference rows c0 … c0 + w − 1 (its first w columns), and
-/// those rows' squared norms (0 for the inner-product search) and norms.
+/// One chunk of the screen of [`best_rows`], in single precision and in the screen's scaled
+/// units: the products of a block of queries (rows of `dots`) with the reference rows c0 … c0 +
+/// w − 1 (its first w columns), and per row its squared norm (0 for the inner-product search),
+/// its norm, and the part of the error bound that does not scale with ‖q‖.
 #[derive(Clone, Copy)]
 struct Chunk<'a> {
     dots: &'a Mat<f32>,
     c0: usize,
     w: usize,
-    ref_norm: &'a [f64],
-    ref_len: &'a [f64],
+    ref_norm: &'a [f32],
+    ref_len: &'a [f32],
+    ref_bound: &'a [f32],
 }
+
+/// Independent lanes of the screen's f32 test (one AVX-512 register).
+const LANES32: usize = 16;
 
 crate::linalg::at_vector_width! {
     /// The screen of one chunk: lowers every query's best upper bound `best_hi` over the chunk,
-    /// then adds to `cands` the rows whose lower bound does not exceed it (`scale`: 2 ε ‖q‖ per
-    /// query, see [`best_rows`]), at the CPU's vector width ([`crate::linalg::at_vector_width`]).
-    fn screen(chunk: Chunk, scale: &[f64], best_hi: &mut [f64], cands: &mut [Vec<(f64, usize)>]) = screen_generic
+    /// then adds to `cands` the rows whose lower bound does not exceed it (`scale`: the bound's
+    /// factor of ‖r_j‖ per query, see [`best_rows`]), at the CPU's vector width
+    /// ([`crate::linalg::at_vector_width`]).
+    fn screen(chunk: Chunk, scale: &[f32], best_hi: &mut [f32], cands: &mut [Vec<(f32, usize)>]) = screen_generic
 }
 
 #[inline(always)]
-fn screen_generic(chunk: Chunk, scale: &[f64], best_hi: &mut [f64], cands: &mut [Vec<(f64, usize)>]) {
-    let Chunk { dots, c0, w, ref_norm, ref_len } = chunk;
+fn screen_generic(chunk: Chunk, scale: &[f32], best_hi: &mut [f32], cands: &mut [Vec<(f32, usize)>]) {
+    let Chunk { dots, c0, w, ref_norm, ref_len, ref_bound } = chunk;
     let len = best_hi.len();
     // Pass 1 (branch-free, vectorized): the smallest upper bound of every query over the chunk.
     for j in 0..w {
         let col = &dots.col_as_slice(j)[..len];
-        let (rn, rl) = (ref_norm[j], ref_len[j]);
+        let (rn, rl, rb) = (ref_norm[j], ref_len[j], ref_bound[j]);
         for ((hi, &dot), &sc) in best_hi.iter_mut().zip(col).zip(scale) {
-            // A compare-and-select, not f64::min: it compiles to `minpd` (the values are
-            // finite, checked by the caller), f64::min's NaN rule to scalar code.
-            let v = rn - 2.0 * dot as f64 + sc * rl;
+            // A compare-and-select, not f32::min: it compiles to `minps` (the values are
+            // finite: the caller scales them into [−1, 1]), f32::min's NaN rule to scalar code.
+            let v = (rn - 2.0 * dot) + sc * rl + rb;
             *hi = if v < *hi { v } else { *hi };
         }
     }
@@ -378,17 +389,17 @@ fn screen_generic(chunk: Chunk, scale: &[f64], best_hi: &mut [f64], cands: &mut 
     // a time only when some query keeps it (a vectorized test first).
     for j in 0..w {
         let col = &dots.col_as_slice(j)[..len];
-        let (rn, rl) = (ref_norm[j], ref_len[j]);
-        let lo = |i: usize| rn - 2.0 * col[i] as f64 - scale[i] * rl;
-        let mut margin = [f64::NEG_INFINITY; LANES];
-        let full = len - len % LANES;
-        for i0 in (0..full).step_by(LANES) {
-            for l in 0..LANES {
+        let (rn, rl, rb) = (ref_norm[j], ref_len[j], ref_bound[j]);
+        let lo = |i: usize| (rn - 2.0 * col[i]) - scale[i] * rl - rb;
+        let mut margin = [f32::NEG_INFINITY; LANES32];
+        let full = len - len % LANES32;
+        for i0 in (0..full).step_by(LANES32) {
+            for l in 0..LANES32 {
                 let x = best_hi[i0 + l] - lo(i0 + l);
-                margin[l] = if x > margin[l] { x } else { margin[l] }; // `maxpd`, as above
+                margin[l] = if x > margin[l] { x } else { margin[l] }; // `maxps`, as above
             }
         }
-        let tail = (full..len).map(|i| best_hi[i] - lo(i)).fold(f64::NEG_INFINITY, f64::max);
+        let tail = (full..len).map(|i| best_hi[i] - lo(i)).fold(f32::NEG_INFINITY, f32::max);
         if margin.iter().fold(tail, |a, &b| a.max(b)) < 0.0 {
             continue;
         }
@@ -414,7 +425,15 @@ fn screen_generic(chunk: Chunk, scale: &[f64], best_hi: &mut [f64], cands: &mut 
 /// ε = 4 (d + 3) u₃₂ (the rounding of q and r_j to f32, and γ_d of a d-term dot product, with a
 /// safety factor 4 for the kernel's summation order; u₃₂ = 2⁻²⁴). A reference row is kept as a
 /// candidate unless its distance, lowered by its bound, exceeds the best distance raised by
-/// its bound; the true optimum is always kept. *Check:* the candidates' distances in f64
+/// its bound; the true optimum is always kept. The screen runs entirely in f32 (sixteen lanes
+/// per AVX-512 vector) on σ q and σ r_j, σ the power of two that brings the largest entry into
+/// [−1, 1] (exact, so the argmin is unchanged; without it products of entries below 10⁻¹⁹
+/// fell below f32's range and the bound failed). Its bound on |e − (‖r‖² − 2 q·r)| for the f32
+/// value e = fl₃₂(‖r‖²) − 2 fl₃₂(q·r) is 2 (2 ε + 16 u₃₂) ‖q‖ ‖r_j‖ + 32 u₃₂ ‖r_j‖² +
+/// 4 √d 2⁻¹⁴⁹ ‖r_j‖ + 8 d 2⁻¹⁴⁹ (scaled units): the products' bound, the rounding of ‖r‖² and of
+/// the f32 sums that form the bounds (each ≤ u₃₂ times quantities no larger than
+/// ‖r‖² + 2 ‖q‖ ‖r‖), doubled, and the absolute error of entries in f32's subnormal range.
+/// *Check:* the candidates' distances in f64
 /// (‖r_j‖² − 2 Σ q_c r_jc, summed in order), the smallest wins, ties to the smallest index. The
 /// result is the exact f64 argmin up to the rounding of that last f64 sum (a near-tie below
 /// 1e-15 relative may resolve differently from a blocked f64 GEMM).
@@ -430,7 +449,7 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
     if m == 0 {
         return Err(Error::invalid("embedding", "the reference set is empty"));
     }
-    use crate::linalg::{max_abs_finite, round_to_f32, row_squared_norms};
+    use crate::linalg::{max_abs_finite, round_to_f32_scaled, row_squared_norms};
     let (Some(max_ref), Some(max_query)) = (max_abs_finite(reference), max_abs_finite(query)) else {
         return Err(Error::invalid("embedding", "it contains a non-finite value"));
     };
@@ -438,11 +457,21 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
     if max_ref.max(max_query) > MAX_EMBEDDING {
         return Err(Error::invalid("embedding", "a value exceeds 1e30 in magnitude"));
     }
+    // The screen works in units scaled by a power of two σ (exact) that brings every entry into
+    // [−1, 1]: no f32 overflow, and no product below f32's range unless the entries' magnitudes
+    // span more than 10³⁸ (covered by the bound's absolute term).
+    let largest = max_ref.max(max_query);
+    let sigma = if largest > 0.0 { 2f64.powi(-(largest.log2().ceil() as i32)) } else { 1.0 };
+    let u = f32::EPSILON as f64 / 2.0;
+    let tiny = 2f64.powi(-149); // the spacing of f32's subnormal numbers
     let ref_sq = row_squared_norms(reference);
-    let ref_len: Vec<f64> = ref_sq.iter().map(|v| v.sqrt()).collect();
-    let ref_norm: Vec<f64> = if euclidean { ref_sq } else { vec![0.0; m] };
-    let eps = SCREEN_SAFETY * (d as f64 + 3.0) * f32::EPSILON as f64 / 2.0;
-    let reference32 = round_to_f32(reference);
+    let ref_len: Vec<f32> = ref_sq.iter().map(|v| (sigma * v.sqrt()) as f32).collect();
+    let ref_norm64: Vec<f64> = if euclidean { ref_sq.clone() } else { vec![0.0; m] };
+    let ref_norm: Vec<f32> = ref_norm64.iter().map(|v| (sigma * sigma * v) as f32).collect();
+    let ref_bound: Vec<f32> =
+        ref_norm64.iter().map(|v| (SLACK * (32.0 * u * sigma * sigma * v + 8.0 * d as f64 * tiny)) as f32).collect();
+    let eps = SCREEN_SAFETY * (d as f64 + 3.0) * u;
+    let reference32 = round_to_f32_scaled(reference, sigma);
     let n = query.nrows();
     let starts: Vec<usize> = (0..n).step_by(QUERY_BLOCK).collect();
     let blocks: Vec<Vec<usize>> = starts
@@ -453,12 +482,20 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
             }
             let len = QUERY_BLOCK.min(n - r0);
             let q = query.subrows(r0, len);
-            let q32 = round_to_f32(q);
-            // 2 ε ‖q‖: the bound on the error of −2 q·r_j is this times ‖r_j‖.
-            let scale: Vec<f64> = row_squared_norms(q).iter().map(|v| 2.0 * eps * v.sqrt()).collect();
+            let q32 = round_to_f32_scaled(q, sigma);
+            // The bound's factor of ‖r_j‖ (scaled units): 2 ε ‖q‖ for the products and 16 u ‖q‖
+            // for the f32 evaluation of the bounds, doubled, and 4 √d 2⁻¹⁴⁹ for entries below
+            // f32's normal range (see the function's documentation).
+            let scale: Vec<f32> = row_squared_norms(q)
+                .iter()
+                .map(|v| {
+                    let qn = sigma * v.sqrt();
+                    (SLACK * (2.0 * (2.0 * eps * qn + 16.0 * u * qn) + 4.0 * (d as f64).sqrt() * tiny)) as f32
+                })
+                .collect();
             // The reference rows in chunks, so that the block of products stays in cache.
-            let mut best_hi = vec![f64::INFINITY; len];
-            let mut cands: Vec<Vec<(f64, usize)>> = vec![Vec::new(); len];
+            let mut best_hi = vec![f32::INFINITY; len];
+            let mut cands: Vec<Vec<(f32, usize)>> = vec![Vec::new(); len];
             let mut dots = Mat::<f32>::zeros(len, REFERENCE_CHUNK.min(m));
             for c0 in (0..m).step_by(REFERENCE_CHUNK) {
                 let w = REFERENCE_CHUNK.min(m - c0);
@@ -470,8 +507,15 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
                     1.0f32,
                     Par::Seq,
                 );
-                let chunk =
-                    Chunk { dots: &dots, c0, w, ref_norm: &ref_norm[c0..c0 + w], ref_len: &ref_len[c0..c0 + w] };
+                let r = c0..c0 + w;
+                let chunk = Chunk {
+                    dots: &dots,
+                    c0,
+                    w,
+                    ref_norm: &ref_norm[r.clone()],
+                    ref_len: &ref_len[r.clone()],
+                    ref_bound: &ref_bound[r],
+                };
                 screen(chunk, &scale, &mut best_hi, &mut cands);
             }
             (0..len)
@@ -483,7 +527,7 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
                             continue;
                         }
                         let dot: f64 = (0..d).map(|c| q[(i, c)] * reference[(j, c)]).sum();
-                        let dist = ref_norm[j] - 2.0 * dot;
+                        let dist = ref_norm64[j] - 2.0 * dot;
                         if dist < best.0 || (dist == best.0 && j < best.1) {
                             best = (dist, j);
                         }
@@ -582,20 +626,21 @@ mod tests {
         };
         // Products on a coarse grid: many exact ties between columns.
         let dots = Mat::<f32>::from_fn(len, w, |_, _| (next() * 64.0).floor() as f32 / 16.0);
-        let ref_norm: Vec<f64> = (0..w).map(|_| (next() * 32.0).floor() / 4.0).collect();
-        let ref_len: Vec<f64> = ref_norm.iter().map(|v| v.sqrt()).collect();
-        let scale: Vec<f64> = (0..len).map(|_| 1e-3 * next()).collect();
+        let ref_norm: Vec<f32> = (0..w).map(|_| (next() * 32.0).floor() as f32 / 4.0).collect();
+        let ref_len: Vec<f32> = ref_norm.iter().map(|v| v.sqrt()).collect();
+        let ref_bound: Vec<f32> = ref_norm.iter().map(|v| 1e-6 * v).collect();
+        let scale: Vec<f32> = (0..len).map(|_| 1e-3 * next() as f32).collect();
         // None: the generic function itself; Some(w): the dispatched one, limited to width w.
         let run = |widest: Option<u8>| {
-            let mut best_hi = vec![f64::INFINITY; len];
+            let mut best_hi = vec![f32::INFINITY; len];
             let mut cands = vec![Vec::new(); len];
-            let chunk = Chunk { dots: &dots, c0, w, ref_norm: &ref_norm, ref_len: &ref_len };
+            let chunk = Chunk { dots: &dots, c0, w, ref_norm: &ref_norm, ref_len: &ref_len, ref_bound: &ref_bound };
             match widest {
                 None => screen_generic(chunk, &scale, &mut best_hi, &mut cands),
                 Some(wd) => crate::linalg::with_widest(wd, || screen(chunk, &scale, &mut best_hi, &mut cands)),
             }
-            let bits: Vec<u64> = best_hi.iter().map(|v| v.to_bits()).collect();
-            let cands: Vec<Vec<(u64, usize)>> =
+            let bits: Vec<u32> = best_hi.iter().map(|v| v.to_bits()).collect();
+            let cands: Vec<Vec<(u32, usize)>> =
                 cands.iter().map(|l| l.iter().map(|&(v, j)| (v.to_bits(), j)).collect()).collect();
             (bits, cands)
         };
@@ -633,6 +678,38 @@ mod tests {
                 assert_eq!((got, &b, &o), (far, &want_best, &want_owner), "widest {widest}, step {s}");
             }
             (best, owner) = (want_best, want_owner);
+        }
+    }
+
+    /// The single-precision screen keeps the exact f64 argmin at every magnitude the search
+    /// accepts (both searches; ties to the smallest index).
+    #[test]
+    fn screen_keeps_the_exact_argmin_at_every_magnitude() {
+        let (m, n, d) = (300, 120, 20);
+        let mut rng = crate::spectral::Normal::new(5);
+        let r0 = Mat::from_fn(m, d, |_, _| rng.sample());
+        // Queries near reference rows (small gaps: many candidates to tell apart), one duplicate.
+        let q0 = Mat::from_fn(n, d, |i, c| r0[((i * 7) % m, c)] + 1e-4 * rng.sample());
+        for magnitude in [1e-30, 1e-3, 1.0, 1e20, 1e29] {
+            let (r, q) = (&r0 * magnitude, &q0 * magnitude);
+            let brute = |euclidean: bool| -> Vec<usize> {
+                (0..n)
+                    .map(|i| {
+                        let mut best = (f64::INFINITY, usize::MAX);
+                        for j in 0..m {
+                            let rn: f64 = if euclidean { (0..d).map(|c| r[(j, c)].powi(2)).sum() } else { 0.0 };
+                            let dot: f64 = (0..d).map(|c| q[(i, c)] * r[(j, c)]).sum();
+                            let v = rn - 2.0 * dot;
+                            if v < best.0 {
+                                best = (v, j);
+                            }
+                        }
+                        best.1
+                    })
+                    .collect()
+            };
+            assert_eq!(nearest_rows(r.as_ref(), q.as_ref()).unwrap(), brute(true), "nearest, magnitude {magnitude}");
+            assert_eq!(max_inner_rows(r.as_ref(), q.as_ref()).unwrap(), brute(false), "inner, magnitude {magnitude}");
         }
     }
 }
