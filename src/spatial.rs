@@ -461,7 +461,8 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
     // [−1, 1]: no f32 overflow, and no product below f32's range unless the entries' magnitudes
     // span more than 10³⁸ (covered by the bound's absolute term).
     let largest = max_ref.max(max_query);
-    let sigma = if largest > 0.0 { 2f64.powi(-(largest.log2().ceil() as i32)) } else { 1.0 };
+    // (The exponent is clamped so that σ stays finite when every entry is a subnormal f64.)
+    let sigma = if largest > 0.0 { 2f64.powi(-(largest.log2().ceil() as i32).clamp(-1000, 1000)) } else { 1.0 };
     let u = f32::EPSILON as f64 / 2.0;
     let tiny = 2f64.powi(-149); // the spacing of f32's subnormal numbers
     let ref_sq = row_squared_norms(reference);
@@ -691,6 +692,7 @@ mod tests {
         // Queries near reference rows (small gaps: many candidates to tell apart), one duplicate.
         let q0 = Mat::from_fn(n, d, |i, c| r0[((i * 7) % m, c)] + 1e-4 * rng.sample());
         for magnitude in [1e-30, 1e-3, 1.0, 1e20, 1e29] {
+            // (1e-30 failed before the screen scaled its copies: f32 products underflowed.)
             let (r, q) = (&r0 * magnitude, &q0 * magnitude);
             let brute = |euclidean: bool| -> Vec<usize> {
                 (0..n)
