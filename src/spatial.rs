@@ -467,7 +467,7 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
     let tiny = 2f64.powi(-149); // the spacing of f32's subnormal numbers
     let ref_sq = row_squared_norms(reference);
     let ref_len: Vec<f32> = ref_sq.iter().map(|v| (sigma * v.sqrt()) as f32).collect();
-    let ref_norm64: Vec<f64> = if euclidean { ref_sq.clone() } else { vec![0.0; m] };
+    let ref_norm64: Vec<f64> = if euclidean { ref_sq } else { vec![0.0; m] };
     let ref_norm: Vec<f32> = ref_norm64.iter().map(|v| (sigma * sigma * v) as f32).collect();
     let ref_bound: Vec<f32> =
         ref_norm64.iter().map(|v| (SLACK * (32.0 * u * sigma * sigma * v + 8.0 * d as f64 * tiny)) as f32).collect();

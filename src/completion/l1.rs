@@ -66,6 +66,8 @@ use faer::{Accum, Mat, MatRef, Par};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::linalg::round_to_f32;
+
 /// Maximum number of independent accumulators (groups of row blocks).
 const GROUPS: usize = 4;
 
@@ -387,11 +389,6 @@ fn partials_f64(
         .collect()
 }
 
-/// Rounds to f32 (column by column, at the CPU's vector width).
-fn to_f32(a: MatRef<f64>) -> Mat<f32> {
-    crate::linalg::round_to_f32(a)
-}
-
 /// `acc` += `part`, widened to f64 (column by column, at the CPU's vector width).
 fn add_widened(mut acc: faer::MatMut<f64>, part: MatRef<f32>) {
     for j in 0..acc.ncols() {
@@ -444,11 +441,11 @@ fn partials_f32(
     let (m, n) = (u.nrows(), v.nrows());
     let ranges = block_groups(m, block);
     let grad = !matches!(products, Products::Value);
-    let (u32_, v32) = (to_f32(u), to_f32(v));
+    let (u32_, v32) = (round_to_f32(u), round_to_f32(v));
     let (a32, b32) = match products {
         Products::Value => (None, None),
-        Products::Factored { pu, pv } => (Some(to_f32(pu)), Some(to_f32(pv))),
-        Products::Projected { psi, phi } => (Some(to_f32(psi)), Some(to_f32(phi))),
+        Products::Factored { pu, pv } => (Some(round_to_f32(pu)), Some(round_to_f32(pv))),
+        Products::Projected { psi, phi } => (Some(round_to_f32(psi)), Some(round_to_f32(phi))),
     };
     ranges
         .par_iter()
@@ -506,7 +503,7 @@ fn partials_f32(
                             rows64 = Mat::zeros(len, b32.ncols());
                         }
                         mul_chunked(rows64.as_mut(), t.as_ref(), b32.as_ref(), &mut tmp);
-                        let rows32 = to_f32(rows64.as_ref());
+                        let rows32 = round_to_f32(rows64.as_ref());
                         if small.nrows() != a32.ncols() {
                             small = Mat::zeros(a32.ncols(), b32.ncols());
                         }
