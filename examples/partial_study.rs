@@ -12,7 +12,8 @@
 //! ```
 //! `MODE=always|auto|never` (default `always`: `--partial`); `SLOPE=s` the slope of the
 //! rectangular maps (default 1); `SEEDED=n` the sample maps from distances alone probed (default
-//! 0: none); `ESTIMATE=1` the area ratio estimated from distance-only maps (default: as it is);
+//! 0: none); `SCALE=area|distances` the area ratio as it is or estimated from distance-only maps
+//! (default: from the heat kernels, `PartialScale::Heat`);
 //! `STRIDE=s` every s-th pair of the range. `DETECT=1`: no matching, the detection of every shape of the
 //! pairs against the pair's other shape (for whole data sets: none should be detected).
 //!
@@ -69,8 +70,10 @@ fn main() -> Result<()> {
     if let Ok(s) = std::env::var("SLOPE") {
         opts.partial.slope = s.parse().expect("SLOPE");
     }
-    if std::env::var("ESTIMATE").is_ok() {
-        opts.partial.estimate_ratio = true;
+    match std::env::var("SCALE").as_deref() {
+        Ok("area") => opts.partial.scale = partial::PartialScale::Area,
+        Ok("distances") => opts.partial.scale = partial::PartialScale::Distances,
+        _ => {}
     }
     if let Ok(s) = std::env::var("SEEDED") {
         opts.partial.seeded = s.parse().expect("SEEDED");
@@ -118,6 +121,27 @@ fn main() -> Result<()> {
         let ty = template(&dir.join(format!("corres/{yn}.vts")));
         let ts = template(&dir.join(format!("corres/{yn}.sym.vts")));
         let t = Instant::now();
+        if std::env::var("SCALE_ONLY").is_ok() {
+            // The heat-kernel scale estimate against the true covered fraction.
+            let pv = ym.vertices();
+            let tpl: Vec<(usize, bool)> = (0..ty.len()).filter_map(|i| ty[i].map(|v| (v, tx[i].is_some()))).collect();
+            let tpos: Vec<[f64; 3]> = tpl.iter().map(|&(v, _)| pv[v]).collect();
+            let near = funcorr::spatial::nearest3(&tpos, pv);
+            let mass = &y.basis.mass;
+            let true_ratio = (0..near.len()).filter(|&v| tpl[near[v]].1).map(|v| mass[v]).sum::<f64>()
+                / mass.iter().sum::<f64>();
+            let xs = funcorr::spatial::farthest_point_samples(x.positions().unwrap(), &x.basis.mass, 500).unwrap();
+            let est = funcorr::matching::heat_scale::heat_scale_ratio(&x.basis, &y.basis, &xs.vertices, (0.1, 1.2), Some(x.area / y.area));
+            let secs = t.elapsed().as_secs_f64();
+            print(format!(
+                "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"area_ratio\":{:.4},\"true_ratio\":{true_ratio:.4},\"heat\":{:.4},\"energy\":{:.5},\"e0\":{:.5},\"seconds\":{secs:.2}}}",
+                x.area / y.area,
+                est.as_ref().map_or(f64::NAN, |e| e.ratio),
+                est.as_ref().map_or(f64::NAN, |e| e.energy),
+                est.as_ref().ok().and_then(|e| e.prior_energy).unwrap_or(f64::NAN),
+            ));
+            return;
+        }
         let run = || -> Result<matching::MatchResult> {
             let det = partial::detect(x, y, &opts.partial);
             let mut opts = opts.clone();

@@ -12,6 +12,7 @@
 //! pull-back ([`crate::fmap::Pullback::transposed`]).
 
 pub mod axiomatic;
+pub mod heat_scale;
 pub mod landmarks;
 pub mod options;
 pub mod partial;

@@ -11,13 +11,18 @@
 //! function of Y restricted to X lives in the first ≈ r·j functions of X, and C_yx is slanted,
 //! k_X ≈ r k_Y (Rodolà et al. 2017, "Partial functional correspondence"). So:
 //!
-//! 0. **Scale** ([`estimate_ratio`]): r is the area of Y that X covers over area(Y). It is
-//!    area(X) / area(Y) only when the shapes share a scale, which shapes scaled to a common
-//!    height do not (FAUST's poses differ in area by up to 1.9×), so r is estimated from maps of
-//!    X's search samples found by geodesic distances alone ([`search::seeded_maps`]) at a grid
-//!    of scales, the scale of the least distortion; it replaces area(X) / area(Y) when the two
-//!    differ by more than 10 % (the data, [`pair_wks`], are then computed again at it). Off by
-//!    default (`PartialOptions::estimate_ratio`): it errs low on too many pairs.
+//! 0. **Scale** ([`PartialOptions::scale`]): r is the area of Y that X covers over area(Y). It
+//!    is area(X) / area(Y) only when the shapes share a scale, which shapes scaled to a common
+//!    height do not (FAUST's poses differ in area by up to 1.9×), nor a part in millimetres
+//!    and a whole in metres. By default ([`PartialScale::Heat`]) r is found without units from
+//!    the heat kernels ([`super::heat_scale`]: X's log-time heat profiles shifted by log r
+//!    against Y's), and area(X) / area(Y) is kept when the profiles fit it within
+//!    [`HEAT_PRIOR_TOLERANCE`] of the best r. On faust_r_partial the heat ratio is off the
+//!    covered fraction by 3.8 % (median; 8 of 97 pairs by more than 15 %) against 8.7 % (35
+//!    pairs) for the area ratio; on tosca_r_partial (shared scale) both 3.1–3.2 %
+//!    (EXPERIMENTS.md). The data ([`pair_wks`]) are then computed again at r. The older
+//!    estimate from sample maps found by geodesic distances alone ([`estimate_ratio()`],
+//!    [`PartialScale::Distances`]) errs low on many pairs.
 //! 1. **Data** in common units: the descriptors F, G are divided by the norms of G's columns on
 //!    Y (not each by its own: F is a piece of G), plus signed descriptors (low-passed to
 //!    r · `signed_smoothing` functions of X and `signed_smoothing` of Y). [`pair_wks`] gives WKS
@@ -101,15 +106,14 @@ pub struct PartialOptions {
     /// by half a turn, EXPERIMENTS.md).
     #[serde(default)]
     pub seeded: usize,
-    /// The data F, G are [`pair_wks`] of this recipe: when the area ratio is re-estimated
-    /// ([`estimate_ratio()`]) they are computed again at the estimate (None: other data, kept).
+    /// The data F, G are [`pair_wks`] of this recipe: when the area ratio r is estimated
+    /// ([`PartialOptions::scale`]) and differs from area(X) / area(Y) they are computed again
+    /// at r (None: other data, kept).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub wks: Option<WksRecipe>,
-    /// Estimate the area ratio from distance-only sample maps ([`estimate_ratio()`]; false, the
-    /// default: the area ratio area(X) / area(Y)). Off by default: it picks too small a ratio
-    /// on many pairs, and both partial sets are better without it (EXPERIMENTS.md).
+    /// How the area ratio r is found (module docs, step 0; default [`PartialScale::Heat`]).
     #[serde(default)]
-    pub estimate_ratio: bool,
+    pub scale: PartialScale,
 }
 
 impl Default for PartialOptions {
@@ -121,10 +125,35 @@ impl Default for PartialOptions {
             slope: 1.0,
             seeded: 0,
             wks: None,
-            estimate_ratio: false,
+            scale: PartialScale::Heat,
         }
     }
 }
+
+/// How the partial path finds the area ratio r (the area of Y that X covers / area(Y)).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PartialScale {
+    /// area(X) / area(Y) in the inputs' units: right only when the two share a scale.
+    Area,
+    /// From the heat kernels, without units ([`super::heat_scale`]); area(X) / area(Y) is kept
+    /// when it fits the heat profiles within [`HEAT_PRIOR_TOLERANCE`] of the best ratio.
+    #[default]
+    Heat,
+    /// From sample maps found by geodesic distances alone ([`estimate_ratio()`]), replacing
+    /// area(X) / area(Y) when the two differ by more than 10 % (errs low on many pairs,
+    /// EXPERIMENTS.md).
+    Distances,
+}
+
+/// [`PartialScale::Heat`]: area(X) / area(Y) is used when its heat-profile energy E is within
+/// this relative margin of the minimum's (measured on faust_r_partial and tosca_r_partial: the
+/// margins 0.05–0.2 give the same ratios within 1 %, EXPERIMENTS.md).
+pub const HEAT_PRIOR_TOLERANCE: f64 = 0.1;
+/// [`PartialScale::Heat`]: the range of r searched (a part of at least a tenth of the whole,
+/// at most 1.2 times it for parts stretched against their whole) and the samples of X matched.
+const HEAT_RANGE: (f64, f64) = (0.1, 1.2);
+const HEAT_SAMPLES: usize = 500;
 
 /// What [`detect`] measured and decided.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -341,8 +370,8 @@ pub struct PartialResult {
     pub coverage: Vec<f64>,
     /// What the correction of the candidate it started from did.
     pub correction: Option<search::Correction>,
-    /// The area ratio r the result was computed with: area(X) / area(Y), or its estimate from
-    /// the distances of a first pass's map when the two differ by more than 10 % (module docs).
+    /// The area ratio r the result was computed with: area(X) / area(Y) or its estimate
+    /// ([`PartialOptions::scale`], module docs step 0).
     pub area_ratio: f64,
 }
 
@@ -510,14 +539,30 @@ pub fn partial_pipeline(
     let (sx, sy) = (sx?, sy?);
     let search_seconds = t.elapsed().as_secs_f64();
     // The shapes' scales may differ (FAUST's bodies, remeshed and scaled to a common height,
-    // differ in area by up to 1.9× between poses): r is estimated from sample maps found by
-    // distances alone ([`estimate_ratio`]), and the estimate replaces the area ratio when the
-    // two differ by more than 10 %.
+    // differ in area by up to 1.9× between poses; a part in millimetres and a whole in metres):
+    // r is estimated as `o.scale` says (module docs, step 0).
     let t = std::time::Instant::now();
     crate::progress::stage("area ratio")?;
-    let guess = if o.estimate_ratio { estimate_ratio(&sx, &sy, r0, p.search.rounds)? } else { r0 };
-    let differs = |a: f64, b: f64| (a / b - 1.0).abs() > 0.1;
-    let r = if differs(guess, r0) { guess } else { r0 };
+    let r = match o.scale {
+        PartialScale::Area => r0,
+        PartialScale::Distances => {
+            let guess = estimate_ratio(&sx, &sy, r0, p.search.rounds)?;
+            if (guess / r0 - 1.0).abs() > 0.1 {
+                guess
+            } else {
+                r0
+            }
+        }
+        PartialScale::Heat => {
+            let xs = crate::spatial::farthest_point_samples(px, &x.basis.mass, HEAT_SAMPLES)?;
+            let prior = Some(r0).filter(|r| (HEAT_RANGE.0..=HEAT_RANGE.1).contains(r));
+            let h = super::heat_scale::heat_scale_ratio(&x.basis, &y.basis, &xs.vertices, HEAT_RANGE, prior)?;
+            match h.prior_energy {
+                Some(e0) if e0 <= (1.0 + HEAT_PRIOR_TOLERANCE) * h.energy => r0,
+                _ => h.ratio,
+            }
+        }
+    };
     let ratio_seconds = t.elapsed().as_secs_f64();
     let (f1, g1) = match &o.wks {
         Some(recipe) if r != r0 => pair_wks_at(x, y, recipe, r)?,
@@ -644,7 +689,7 @@ fn pass(
     let ky_max = p.candidates.iter().copied().max().unwrap_or(1).min(y.basis.k());
     let side_y = spectral_side(&dy, ky_max, comm, orient, p.fit.unit_gradients, "Y")?;
     let mut side_x = spectral_side(&dx, slope.kx(ky_max), comm, orient, p.fit.unit_gradients, "X")?;
-    side_x.eigenvalues.iter_mut().for_each(|l| *l /= r);
+    in_units_of_y(&mut side_x, r, p.fit.unit_gradients);
     let fits: Vec<Mat<f64>> = p
         .candidates
         .par_iter()
@@ -829,6 +874,20 @@ fn pass(
     Ok(PartialResult { map_xy, c_yx, c_fit, candidates, chosen, stages, coverage, correction, area_ratio: r })
 }
 
+/// X's side of the energy (computed on X at unit area) with its differential operators in Y's
+/// units, X's area there being r (Y at unit area): X's lengths at unit area are Y's / √r, so
+/// its eigenvalues are r times Y's units' (λ / r here) and its orientation operators, built from
+/// gradients, √r times (unit descriptor gradients: one gradient, of the basis function) or r
+/// times (raw gradients: two). The basis stays X's own (orthonormal at unit area), and with it
+/// the descriptor coefficients and the multiplication operators (pointwise products, no unit).
+/// Before 2026-12-05 the orientation operators were left at X's unit area, √r times too large
+/// against Y's (EXPERIMENTS.md).
+fn in_units_of_y(side: &mut crate::fmap::energy::SpectralSide, r: f64, unit_gradients: bool) {
+    side.eigenvalues.iter_mut().for_each(|l| *l /= r);
+    let f = if unit_gradients { r.sqrt().recip() } else { r.recip() };
+    side.orientation.iter_mut().for_each(|o| *o = &*o * faer::Scale(f));
+}
+
 /// The confidence (length m, in [0, 1]) that X covers each vertex of Y, from the images
 /// `map_xy` of X's vertices: with d(v) the distance along Y's edges (unit area) from v to the
 /// nearest image and ρ the distance within which the vertices nearest to the images hold
@@ -863,4 +922,57 @@ pub fn coverage(y: &PreparedShape, map_xy: &[usize], area_ratio: f64) -> Result<
     }
     let rho = rho.max(0.5 * ty.mean_edge_length()).max(f64::MIN_POSITIVE);
     Ok(dist.iter().map(|&d| if d.is_finite() { 1.0 / (1.0 + (d / rho).powi(4)) } else { 0.0 }).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::laplacian::cotangent;
+    use crate::operators::FaceGradients;
+    use crate::primitives::bumpy_sphere;
+    use crate::shape::TriMesh;
+    use crate::spectral::{eigen_basis, Basis, SpectralOptions};
+
+    /// X's side at unit area, brought to Y's units by [`in_units_of_y`], equals the side of X at
+    /// its size in Y's units (area r), in the same basis.
+    #[test]
+    fn the_side_of_x_in_units_of_y_is_the_side_of_x_at_that_size() {
+        let m = bumpy_sphere(2);
+        let scaled = |area: f64| {
+            let s = (area / m.total_area()).sqrt();
+            TriMesh::new(m.vertices().iter().map(|p| p.map(|c| c * s)).collect(), m.faces().to_vec()).unwrap()
+        };
+        let r = 0.6;
+        let (unit, small) = (scaled(1.0), scaled(r));
+        let b = eigen_basis(&cotangent(&unit).unwrap(), &SpectralOptions::new(12), None).unwrap().0;
+        // The same functions at area r: orthonormal for the mass r A.
+        let b_small = Basis {
+            eigenvalues: b.eigenvalues.iter().map(|l| l / r).collect(),
+            eigenvectors: &b.eigenvectors * faer::Scale(r.sqrt().recip()),
+            mass: b.mass.iter().map(|a| a * r).collect(),
+            residuals: b.residuals.clone(),
+        };
+        let v = unit.vertices();
+        let f = Descriptors::new(
+            Mat::from_fn(v.len(), 2, |i, j| if j == 0 { v[i][2] } else { v[i][0] * v[i][1] + 0.1 }),
+            vec!["a".into(), "b".into()],
+        )
+        .unwrap();
+        let (g, g_small) = (FaceGradients::new(&unit).unwrap(), FaceGradients::new(&small).unwrap());
+        for unit_gradients in [true, false] {
+            let data = ShapeData { basis: &b, gradients: Some(&g), descriptors: &f };
+            let mut side = spectral_side(&data, 12, true, true, unit_gradients, "X").unwrap();
+            in_units_of_y(&mut side, r, unit_gradients);
+            let data_small = ShapeData { basis: &b_small, gradients: Some(&g_small), descriptors: &f };
+            let truth = spectral_side(&data_small, 12, true, true, unit_gradients, "X").unwrap();
+            let close = |a: &Mat<f64>, b: &Mat<f64>| (a - b).norm_l2() <= 1e-9 * b.norm_l2().max(1e-300);
+            for (a, b) in side.eigenvalues.iter().zip(&truth.eigenvalues) {
+                assert!((a - b).abs() <= 1e-9 * b.abs().max(1.0), "{a} vs {b}");
+            }
+            assert!(side.orientation.iter().zip(&truth.orientation).all(|(a, b)| close(a, b)), "unit {unit_gradients}");
+            assert!(side.multiplication.iter().zip(&truth.multiplication).all(|(a, b)| close(a, b)));
+            // The descriptor coefficients stay in X's own basis (Φᵀ A F at unit area): √r apart.
+            assert!(close(&(&side.coefficients * faer::Scale(r.sqrt())), &truth.coefficients));
+        }
+    }
 }

@@ -1,0 +1,201 @@
+//! The scale of a part X against a whole Y from their heat kernels, with no correspondence.
+//!
+//! Both bases are at unit area ([`crate::prepared`]). If X covers the fraction r of Y's area
+//! (X's area in Y's units over area(Y), the area ratio the partial path needs), X's lengths at
+//! unit area are Y's lengths / √r and X's diffusion times Y's times / r. The dimensionless heat
+//! kernel diagonal
+//!
+//! u(v, t) = t · k_t(v, v),  k_t(v, v) = Σ_i e^{−λ_i t} φ_i(v)²,
+//!
+//! is unchanged by an isometry and by scaling (t k_t has no unit), so where X is an isometric
+//! piece of Y, u_X(x, t / r) = u_Y(T x, t) at every time t small enough that heat from x has not
+//! reached X's cut (Neumann boundary). This is the scale covariance behind the scale-invariant
+//! HKS (Bronstein & Kokkinos 2010, "Scale-invariant heat kernel signatures"): a change of scale is
+//! a shift of log t. So r is the ratio at which X's log-time profiles, shifted by log r, find
+//! the closest partners among Y's: for every r of a log grid,
+//!
+//! E(r) = mean over the better ¾ of X's samples x of min_y ‖p_X(x; r) − p_Y(y)‖² / V(r),
+//!
+//! p_X(x; r)_j = log u_X(x, t_j / r), p_Y(y)_j = log u_Y(y, t_j), V(r) the total variance of X's
+//! profiles p_X(·; r) over the samples: without it E prefers the ratios at which X's profiles all
+//! look alike (large r, short times on X: every profile near the flat limit u = 1/4π) and
+//! picked r = 1.2 for parts covering 0.6 of their whole. The times t_j are log-spaced over
+//! [`TIME_SPAN`] from the smallest time both truncated bases resolve; the better ¾ discards the
+//! samples near X's cut (their heat reaches the boundary) and those whose partners X does not
+//! hold. r = argmin E. k_t is truncated to the basis
+//! and completed by Weyl's law at unit area: Σ_{i>k} e^{−λ_i t} φ_i(v)² ≈ e^{−λ_k t} / (4π t).
+
+use kiddo::ImmutableKdTree;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::error::{Error, Result};
+use crate::spectral::Basis;
+
+/// Number of diffusion times (the dimension of the log-time profiles).
+const TIMES: usize = 8;
+/// The times run from t₀ to TIME_SPAN · t₀ (t₀ = [`FIRST_TIME`] / λ_k of the smaller band).
+const TIME_SPAN: f64 = 16.0;
+/// t₀ λ_k: the truncated sum misses a fraction ≈ e^{−4} ≈ 2 % of the kernel at the first time
+/// (before the Weyl completion).
+const FIRST_TIME: f64 = 4.0;
+/// The share of X's samples whose misfits count (the better ones: the rest lie near X's cut
+/// or have no partner on Y).
+const KEPT: f64 = 0.75;
+/// Grid of log r: coarse steps, then fine steps around the coarse minimum.
+const COARSE_STEP: f64 = 0.04;
+const FINE_STEP: f64 = 0.005;
+
+/// What [`heat_scale_ratio`] found.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct HeatScale {
+    /// The estimated area ratio r (X's area in Y's units / area(Y)).
+    pub ratio: f64,
+    /// E(r) at the estimate (squared log-profile distance, dimensionless).
+    pub energy: f64,
+    /// The diffusion times t_j on Y (unit area).
+    pub times: Vec<f64>,
+    /// E at the prior ratio given to [`heat_scale_ratio`] (None without one).
+    pub prior_energy: Option<f64>,
+}
+
+/// log u(v, t_j) of `basis` at the vertices `rows`, the times `times` multiplied by `factor`:
+/// one `TIMES`-vector per row.
+fn log_profiles(basis: &Basis, rows: &[usize], times: &[f64; TIMES], factor: f64) -> Vec<[f64; TIMES]> {
+    let k = basis.k();
+    let lk = basis.eigenvalues[k - 1];
+    let decay: Vec<[f64; TIMES]> =
+        basis.eigenvalues.iter().map(|&l| std::array::from_fn(|j| (-l.max(0.0) * times[j] * factor).exp())).collect();
+    let tail: [f64; TIMES] = std::array::from_fn(|j| (-lk * times[j] * factor).exp() / (4.0 * std::f64::consts::PI));
+    rows.iter()
+        .map(|&v| {
+            let mut s = [0.0; TIMES];
+            for (i, d) in decay.iter().enumerate() {
+                let p = basis.eigenvectors[(v, i)].powi(2);
+                for j in 0..TIMES {
+                    s[j] += d[j] * p;
+                }
+            }
+            std::array::from_fn(|j| (times[j] * factor * s[j] + tail[j]).ln())
+        })
+        .collect()
+}
+
+/// The total variance of the profiles `p` (sum over the times of the variance over the rows).
+fn profile_variance(p: &[[f64; TIMES]]) -> f64 {
+    let n = p.len() as f64;
+    (0..TIMES)
+        .map(|j| {
+            let mean = p.iter().map(|q| q[j]).sum::<f64>() / n;
+            p.iter().map(|q| (q[j] - mean).powi(2)).sum::<f64>() / n
+        })
+        .sum()
+}
+
+/// The area ratio r of a part X to a whole Y (module docs) from their unit-area bases: X's
+/// samples `xs` (vertex ids of X, the rows whose profiles are matched) against every vertex of
+/// Y, r searched in [`lo`, `hi`] (dimensionless, 0 < lo < hi). Errors: bases with fewer than 2
+/// eigenpairs or a non-positive largest eigenvalue, no samples, a sample out of range, a bad
+/// range.
+pub fn heat_scale_ratio(
+    x: &Basis,
+    y: &Basis,
+    xs: &[usize],
+    (lo, hi): (f64, f64),
+    prior: Option<f64>,
+) -> Result<HeatScale> {
+    if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
+        return Err(Error::invalid("scale range", format!("need 0 < lo < hi, got [{lo}, {hi}]")));
+    }
+    if x.k() < 2 || y.k() < 2 {
+        return Err(Error::invalid("bases", "the heat scale needs at least 2 eigenpairs of each shape"));
+    }
+    let (lx, ly) = (x.eigenvalues[x.k() - 1], y.eigenvalues[y.k() - 1]);
+    if !(lx > 0.0 && ly > 0.0 && lx.is_finite() && ly.is_finite()) {
+        return Err(Error::invalid("bases", format!("largest eigenvalues {lx} and {ly}: need > 0")));
+    }
+    if xs.is_empty() {
+        return Err(Error::invalid("samples", "no samples of X"));
+    }
+    if let Some(&v) = xs.iter().find(|&&v| v >= x.n()) {
+        return Err(Error::invalid("samples", format!("vertex {v} of X, which has {}", x.n())));
+    }
+    // X is read at t / r ≥ t / hi: both truncations resolve the first time at every r ≤ hi.
+    let t0 = FIRST_TIME / ly.min(lx * hi);
+    let times: [f64; TIMES] = std::array::from_fn(|j| t0 * TIME_SPAN.powf(j as f64 / (TIMES - 1) as f64));
+    let all_y: Vec<usize> = (0..y.n()).collect();
+    let py = log_profiles(y, &all_y, &times, 1.0);
+    let tree: ImmutableKdTree<f64, TIMES> = ImmutableKdTree::new_from_slice(&py);
+    let energy = |r: f64| -> f64 {
+        let px = log_profiles(x, xs, &times, 1.0 / r);
+        let mut d: Vec<f64> = px.par_iter().map(|q| tree.nearest_one::<kiddo::SquaredEuclidean>(q).distance).collect();
+        d.sort_by(|a, b| a.total_cmp(b));
+        let kept = ((d.len() as f64 * KEPT).ceil() as usize).clamp(1, d.len());
+        let misfit = d[..kept].iter().sum::<f64>() / kept as f64;
+        // A floor for shapes whose profiles are all alike (a round sphere): E is then the misfit.
+        misfit / profile_variance(&px).max(1e-12)
+    };
+    let grid = |a: f64, b: f64, step: f64| -> Vec<f64> {
+        let count = ((b.ln() - a.ln()) / step).ceil().max(0.0) as usize;
+        (0..=count).map(|i| (a.ln() + step * i as f64).exp().min(b)).collect()
+    };
+    let best = |rs: Vec<f64>| -> (f64, f64) {
+        rs.into_iter().map(|r| (r, energy(r))).min_by(|a, b| a.1.total_cmp(&b.1)).expect("a non-empty grid")
+    };
+    let (coarse, _) = best(grid(lo, hi, COARSE_STEP));
+    let (ratio, e) =
+        best(grid((coarse * (-COARSE_STEP).exp()).max(lo), (coarse * COARSE_STEP.exp()).min(hi), FINE_STEP));
+    if !e.is_finite() {
+        return Err(Error::invalid("bases", "the heat profiles are not finite"));
+    }
+    let prior_energy = prior.map(energy);
+    Ok(HeatScale { ratio, energy: e, times: times.to_vec(), prior_energy })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::laplacian::cotangent;
+    use crate::primitives::bumpy_sphere;
+    use crate::spectral::{eigen_basis, SpectralOptions};
+
+    fn basis() -> Basis {
+        let m = bumpy_sphere(3);
+        let mut b = eigen_basis(&cotangent(&m).unwrap(), &SpectralOptions::new(60), None).unwrap().0;
+        // At unit area, as the prepared shapes' bases: λ × area, φ × √area.
+        let area: f64 = b.mass.iter().sum();
+        b.eigenvalues.iter_mut().for_each(|l| *l *= area);
+        b.eigenvectors = &b.eigenvectors * faer::Scale(area.sqrt());
+        b.mass.iter_mut().for_each(|a| *a /= area);
+        b
+    }
+
+    #[test]
+    fn a_whole_shape_against_itself_has_ratio_one() {
+        let b = basis();
+        let xs: Vec<usize> = (0..b.n()).step_by(3).collect();
+        let h = heat_scale_ratio(&b, &b, &xs, (0.1, 1.2), Some(1.0)).unwrap();
+        assert!((h.ratio - 1.0).abs() <= 0.01, "{h:?}");
+        // The prior is the minimum (0: every sample is its own partner).
+        assert!(h.prior_energy.unwrap() <= h.energy + 1e-15, "{h:?}");
+        assert!(h.times.windows(2).all(|w| w[1] > w[0]) && h.times.len() == TIMES);
+        // A ratio far from 1 fits worse.
+        let far = heat_scale_ratio(&b, &b, &xs, (0.1, 1.2), Some(0.3)).unwrap();
+        assert!(far.prior_energy.unwrap() > 2.0 * h.energy.max(1e-6), "{far:?}");
+    }
+
+    #[test]
+    fn bad_inputs_are_errors_naming_them() {
+        let b = basis();
+        for (range, what) in
+            [((0.0, 1.0), "scale range"), ((1.0, 0.5), "scale range"), ((0.1, f64::NAN), "scale range")]
+        {
+            let e = heat_scale_ratio(&b, &b, &[0], range, None).unwrap_err().to_string();
+            assert!(e.contains(what), "{e}");
+        }
+        let e = heat_scale_ratio(&b, &b, &[], (0.1, 1.0), None).unwrap_err().to_string();
+        assert!(e.contains("samples"), "{e}");
+        let e = heat_scale_ratio(&b, &b, &[b.n()], (0.1, 1.0), None).unwrap_err().to_string();
+        assert!(e.contains("samples") && e.contains(&b.n().to_string()), "{e}");
+    }
+}
