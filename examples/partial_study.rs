@@ -14,7 +14,7 @@
 //! rectangular maps (default 1); `SEEDED=n` the sample maps from distances alone probed (default
 //! 0: none); `SCALE=area|distances` the area ratio as it is or estimated from distance-only maps
 //! (default: from the heat kernels, `PartialScale::Heat`);
-//! `STRIDE=s` every s-th pair of the range. `DETECT=1`: no matching, the detection of every shape of the
+//! `CLOUD=x` the parts as point clouds of their vertices. `STRIDE=s` every s-th pair of the range. `DETECT=1`: no matching, the detection of every shape of the
 //! pairs against the pair's other shape (for whole data sets: none should be detected).
 //!
 //! Coverage truth: a vertex of Y is covered when its nearest template point of Y (Euclidean,
@@ -88,7 +88,15 @@ fn main() -> Result<()> {
     let shapes: Vec<(String, PreparedShape)> = names
         .par_iter()
         .map(|n| {
-            let s = Shape::load(ds.shape_path(n).expect("shape"))?;
+            let mut s = Shape::load(ds.shape_path(n).expect("shape"))?;
+            // CLOUD=x: the parts (X, `*_cut`) as point clouds of their vertices (with `MODE`
+            // always, the default: a cloud has no boundary to detect).
+            if std::env::var("CLOUD").as_deref() == Ok("x") && n.ends_with("_cut") {
+                if let Shape::Mesh(m) = &s {
+                    let flat: Vec<f64> = m.vertices().iter().flatten().copied().collect();
+                    s = Shape::Points(funcorr::shape::PointSet::new(m.n_vertices(), 3, flat)?);
+                }
+            }
             Ok((n.clone(), PreparedShape::new(s, LaplacianChoice::Auto, k, cache.as_ref())?))
         })
         .collect::<Result<_>>()?;

@@ -191,7 +191,10 @@ fn a_point_cloud_part_is_matched_with_partial() {
     let edge = y.triangles().unwrap().mean_edge_length();
     let (median, p95) = (e[n / 2] / edge, e[n * 95 / 100] / edge);
     eprintln!("cloud part: distance to the truth in mean edge lengths: median {median:.2}, 95 % {p95:.2}");
-    assert!(median <= 3.0 && p95 <= 8.0, "median {median:.2}, 95 % {p95:.2}");
+    // Measured: median 2.43, 95 % 5.88 before X's orientation operators were put in Y's units
+    // (2026-12-05), 3.14 / 7.06 after; over faust_r_partial's parts as vertex clouds that change
+    // lowered the mean error (EXPERIMENTS.md, "Partial shapes: the scale from the heat kernels").
+    assert!(median <= 3.5 && p95 <= 8.0, "median {median:.2}, 95 % {p95:.2}");
     let cov = r.coverage.as_ref().expect("a coverage");
     let mut truth = vec![false; y.n()];
     orig.iter().for_each(|&v| truth[v] = true);
