@@ -20,7 +20,7 @@
 //! profiles p_X(·; r) over the samples: without it E prefers the ratios at which X's profiles all
 //! look alike (large r, short times on X: every profile near the flat limit u = 1/4π) and
 //! picked r = 1.2 for parts covering 0.6 of their whole. The times t_j are log-spaced over
-//! [`TIME_SPAN`] from the smallest time both truncated bases resolve; the better ¾ discards the
+//! a span of 16 (`TIME_SPAN`) from the smallest time both truncated bases resolve; the better ¾ discards the
 //! samples near X's cut (their heat reaches the boundary) and those whose partners X does not
 //! hold. r = argmin E. k_t is truncated to the basis
 //! and completed by Weyl's law at unit area: Σ_{i>k} e^{−λ_i t} φ_i(v)² ≈ e^{−λ_k t} / (4π t).
@@ -94,7 +94,7 @@ fn profile_variance(p: &[[f64; TIMES]]) -> f64 {
 
 /// The area ratio r of a part X to a whole Y (module docs) from their unit-area bases: X's
 /// samples `xs` (vertex ids of X, the rows whose profiles are matched) against every vertex of
-/// Y, r searched in [`lo`, `hi`] (dimensionless, 0 < lo < hi). Errors: bases with fewer than 2
+/// Y, r searched in lo ..= hi (dimensionless, 0 < lo < hi). Errors: bases with fewer than 2
 /// eigenpairs or a non-positive largest eigenvalue, no samples, a sample out of range, a bad
 /// range.
 pub fn heat_scale_ratio(

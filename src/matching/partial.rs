@@ -17,8 +17,8 @@
 //!    and a whole in metres. By default ([`PartialScale::Heat`]) r is found without units from
 //!    the heat kernels ([`super::heat_scale`]: X's log-time heat profiles shifted by log r
 //!    against Y's), and area(X) / area(Y) is kept when the profiles fit it within
-//!    [`HEAT_PRIOR_TOLERANCE`] of the best r. On faust_r_partial the heat ratio is off the
-//!    covered fraction by 3.8 % (median; 8 of 97 pairs by more than 15 %) against 8.7 % (35
+//!    [`HEAT_PRIOR_TOLERANCE`] of the best r. On faust_r_partial the ratio so found is off the
+//!    covered fraction by 3.7 % (median; 8 of 97 pairs by more than 15 %) against 8.7 % (35
 //!    pairs) for the area ratio; on tosca_r_partial (shared scale) both 3.1–3.2 %
 //!    (EXPERIMENTS.md). The data ([`pair_wks`]) are then computed again at r. The older
 //!    estimate from sample maps found by geodesic distances alone ([`estimate_ratio()`],
