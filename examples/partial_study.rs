@@ -50,6 +50,20 @@ fn template(path: &Path) -> Vec<Option<usize>> {
         .collect()
 }
 
+/// For every vertex of Y, whether X covers it: its nearest template point of Y (Euclidean) is
+/// present in X. `tx`, `ty`: the template's vertices on X and on Y ([`template`]).
+fn covered_truth(ym: &funcorr::shape::TriMesh, tx: &[Option<usize>], ty: &[Option<usize>]) -> Vec<bool> {
+    let pv = ym.vertices();
+    let tpl: Vec<(usize, bool)> = (0..ty.len()).filter_map(|i| ty[i].map(|v| (v, tx[i].is_some()))).collect();
+    let tpos: Vec<[f64; 3]> = tpl.iter().map(|&(v, _)| pv[v]).collect();
+    funcorr::spatial::nearest3(&tpos, pv).iter().map(|&t| tpl[t].1).collect()
+}
+
+/// The share of Y's area (vertex weights `mass`) that `covered` marks: the true area ratio.
+fn covered_fraction(covered: &[bool], mass: &[f64]) -> f64 {
+    (0..covered.len()).filter(|&v| covered[v]).map(|v| mass[v]).sum::<f64>() / mass.iter().sum::<f64>()
+}
+
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let dir = Path::new(&args[0]);
@@ -131,13 +145,7 @@ fn main() -> Result<()> {
         let t = Instant::now();
         if std::env::var("SCALE_ONLY").is_ok() {
             // The heat-kernel scale estimate against the true covered fraction.
-            let pv = ym.vertices();
-            let tpl: Vec<(usize, bool)> = (0..ty.len()).filter_map(|i| ty[i].map(|v| (v, tx[i].is_some()))).collect();
-            let tpos: Vec<[f64; 3]> = tpl.iter().map(|&(v, _)| pv[v]).collect();
-            let near = funcorr::spatial::nearest3(&tpos, pv);
-            let mass = &y.basis.mass;
-            let true_ratio = (0..near.len()).filter(|&v| tpl[near[v]].1).map(|v| mass[v]).sum::<f64>()
-                / mass.iter().sum::<f64>();
+            let true_ratio = covered_fraction(&covered_truth(ym, &tx, &ty), &y.basis.mass);
             let xs = funcorr::spatial::farthest_point_samples(x.positions().unwrap(), &x.basis.mass, 500).unwrap();
             let est = funcorr::matching::heat_scale::heat_scale_ratio(&x.basis, &y.basis, &xs.vertices, (0.1, 1.2), Some(x.area / y.area));
             let secs = t.elapsed().as_secs_f64();
@@ -180,11 +188,7 @@ fn main() -> Result<()> {
                 let d = 100.0 * direct.iter().sum::<f64>() / kk / sqrt_area;
                 let s = 100.0 * direct.iter().zip(&mirrored).map(|(a, b)| a.min(*b)).sum::<f64>() / kk / sqrt_area;
                 // Coverage truth through Y's template points.
-                let pv = ym.vertices();
-                let tpl: Vec<(usize, bool)> = (0..ty.len()).filter_map(|i| ty[i].map(|v| (v, tx[i].is_some()))).collect();
-                let tpos: Vec<[f64; 3]> = tpl.iter().map(|&(v, _)| pv[v]).collect();
-                let near = funcorr::spatial::nearest3(&tpos, pv);
-                let truth: Vec<bool> = near.iter().map(|&t| tpl[t].1).collect();
+                let truth = covered_truth(ym, &tx, &ty);
                 let (iou, det) = match (&r.coverage, &r.partial) {
                     (Some(c), Some(det)) => {
                         let inter = (0..c.len()).filter(|&v| c[v] >= 0.5 && truth[v]).count();
@@ -197,9 +201,7 @@ fn main() -> Result<()> {
                 // search's distortion (X's distances scaled by the used and the true ratio) of
                 // the result and of the truth on the search's samples: which of the score and
                 // the search fails on a pair.
-                let mass = &y.basis.mass;
-                let true_ratio = (0..truth.len()).filter(|&v| truth[v]).map(|v| mass[v]).sum::<f64>()
-                    / mass.iter().sum::<f64>();
+                let true_ratio = covered_fraction(&truth, &y.basis.mass);
                 let diag = if std::env::var("DIAG").is_ok() {
                     let (tx_, ty_) = (x.triangles().unwrap(), y.triangles().unwrap());
                     let sx = funcorr::matching::search::SampleDistances::new(

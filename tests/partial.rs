@@ -58,6 +58,23 @@ fn compact(v: &[[f64; 3]], faces: &[[u32; 3]]) -> (Vec<usize>, Vec<[u32; 3]>) {
     (used, faces.iter().map(|f| f.map(|i| new[i as usize])).collect())
 }
 
+/// Euclidean distance (unit area) from each vertex's image `map_xy[i]` to its true image
+/// `orig[i]` on Y, in Y's mean edge lengths, sorted ascending.
+fn distances_to_truth(y: &PreparedShape, map_xy: &[usize], orig: &[usize]) -> Vec<f64> {
+    let py = y.positions().unwrap();
+    let edge = y.triangles().unwrap().mean_edge_length();
+    let mut e: Vec<f64> = map_xy
+        .iter()
+        .zip(orig)
+        .map(|(&m, &o)| {
+            let (a, b) = (py[m], py[o]);
+            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt() / edge
+        })
+        .collect();
+    e.sort_by(|a, b| a.total_cmp(b));
+    e
+}
+
 fn prepare(m: TriMesh) -> PreparedShape {
     PreparedShape::new(Shape::Mesh(m), LaplacianChoice::Auto, 130, None).unwrap()
 }
@@ -89,16 +106,8 @@ fn a_cut_copy_is_placed_on_its_whole_shape_with_its_coverage() {
     let (orig, x, y, det, r) = cut_copy_match();
     let n = x.n();
     // The map: every vertex within a few edges of itself (Euclidean, unit area).
-    let py = y.positions().unwrap();
-    let mut e: Vec<f64> = (0..n)
-        .map(|i| {
-            let (a, b) = (py[r.map_xy[i]], py[orig[i]]);
-            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-        })
-        .collect();
-    e.sort_by(|a, b| a.total_cmp(b));
-    let edge = y.triangles().unwrap().mean_edge_length();
-    let (median, p95, worst) = (e[n / 2] / edge, e[n * 95 / 100] / edge, e[n - 1] / edge);
+    let e = distances_to_truth(&y, &r.map_xy, &orig);
+    let (median, p95, worst) = (e[n / 2], e[n * 95 / 100], e[n - 1]);
     eprintln!("distance to the truth in mean edge lengths: median {median:.2}, 95 % {p95:.2}, worst {worst:.2}");
     assert!(median <= 1.5 && p95 <= 4.0 && worst <= 8.0, "median {median:.2}, 95 % {p95:.2}, worst {worst:.2}");
     // Coverage: the vertices of confidence ≥ ½ against the cut's piece.
@@ -180,16 +189,8 @@ fn a_point_cloud_part_is_matched_with_partial() {
     let r = run(&x, &y, &f, &g, &opts).unwrap();
     assert!(r.partial.as_ref().is_some_and(|d| d.partial && d.boundary_x.is_none()));
     assert_eq!(r.map_xy.len(), n);
-    let py = y.positions().unwrap();
-    let mut e: Vec<f64> = (0..n)
-        .map(|i| {
-            let (a, b) = (py[r.map_xy[i]], py[orig[i]]);
-            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-        })
-        .collect();
-    e.sort_by(|a, b| a.total_cmp(b));
-    let edge = y.triangles().unwrap().mean_edge_length();
-    let (median, p95) = (e[n / 2] / edge, e[n * 95 / 100] / edge);
+    let e = distances_to_truth(&y, &r.map_xy, &orig);
+    let (median, p95) = (e[n / 2], e[n * 95 / 100]);
     eprintln!("cloud part: distance to the truth in mean edge lengths: median {median:.2}, 95 % {p95:.2}");
     // Measured: median 2.43, 95 % 5.88 before X's orientation operators were put in Y's units
     // (2026-12-05), 3.14 / 7.06 after; over faust_r_partial's parts as vertex clouds that change
@@ -235,15 +236,7 @@ fn a_part_in_other_units_gets_its_area_ratio_from_the_heat_kernels() {
         );
         assert!((used / truth - 1.0).abs() <= 0.1, "used {used}, true {truth}");
         // Every vertex within a few edges of itself, as in the test in the same units.
-        let py = y.positions().unwrap();
-        let edge = y.triangles().unwrap().mean_edge_length();
-        let mut e: Vec<f64> = (0..x.n())
-            .map(|i| {
-                let (a, b) = (py[r.map_xy[i]], py[orig[i]]);
-                ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt() / edge
-            })
-            .collect();
-        e.sort_by(|a, b| a.total_cmp(b));
+        let e = distances_to_truth(&y, &r.map_xy, &orig);
         let (median, p95) = (e[e.len() / 2], e[e.len() * 95 / 100]);
         eprintln!("scale {s}: distance to the truth in mean edge lengths: median {median:.2}, 95 % {p95:.2}");
         assert!(median <= 1.5 && p95 <= 4.0, "median {median:.2}, 95 % {p95:.2}");
