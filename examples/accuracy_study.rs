@@ -25,7 +25,8 @@
 //! pairs, the farthest-point samples (Euclidean, on X) of the template points starting from the
 //! template point at position `lmseed · 7919 mod len` (`lmseed=S`, default 0: the first), with
 //! their ground-truth images; `lmw=W` their weight in the data, `lmpin=W` their sample weight in
-//! ZoomOut and the polish, `lmtol=T` their tolerance in the candidates' score
+//! ZoomOut and the polish, `lmtol=T` their tolerance in the candidates' score, `lmsig=a/b/…` the
+//! widths of their bumps
 //! (`funcorr::matching::landmarks::Landmarks`). The JSON line then has `"landmarks"` and
 //! `"lmseed"`; `"search"` has the chosen candidate's `"landmark_error"` and whether it was made
 //! from the landmarks.
@@ -157,6 +158,7 @@ impl Variant {
                 "lmw" => a.landmarks.weight = f(),
                 "lmpin" => a.landmarks.pin_weight = f(),
                 "lmtol" => a.landmarks.tolerance = f(),
+                "lmsig" => a.landmarks.widths = val.split('/').map(|w| w.parse().expect("lmsig")).collect(),
                 _ => panic!("unknown key {k}"),
             }
         }

@@ -14,7 +14,8 @@
 //! rectangular maps (default 1); `SEEDED=n` the sample maps from distances alone probed (default
 //! 0: none); `SCALE=area|distances` the area ratio as it is or estimated from distance-only maps
 //! (default: from the heat kernels, `PartialScale::Heat`);
-//! `CLOUD=x` the parts as point clouds of their vertices. `STRIDE=s` every s-th pair of the range. `DETECT=1`: no matching, the detection of every shape of the
+//! `CLOUD=x` the parts as point clouds of their vertices. `UNITS=1` every shape in its own unit
+//! (×10^u, u ∈ [−3, 3] from a hash of its name). `STRIDE=s` every s-th pair of the range. `DETECT=1`: no matching, the detection of every shape of the
 //! pairs against the pair's other shape (for whole data sets: none should be detected).
 //!
 //! Coverage truth: a vertex of Y is covered when its nearest template point of Y (Euclidean,
@@ -93,7 +94,8 @@ fn main() -> Result<()> {
         opts.partial.seeded = s.parse().expect("SEEDED");
     }
     let detect_only = std::env::var("DETECT").is_ok();
-    let k = if detect_only { 20 } else { 200 };
+    // The bases of `funcorr match` (the detection's heat kernels need them as the pipeline has them).
+    let k = 200;
     let cache = BasisCache::default_dir().map(BasisCache::new);
     let mut names: Vec<String> = pairs.iter().flat_map(|(x, y)| [x.clone(), y.clone()]).collect();
     names.sort();
@@ -103,6 +105,14 @@ fn main() -> Result<()> {
         .par_iter()
         .map(|n| {
             let mut s = Shape::load(ds.shape_path(n).expect("shape"))?;
+            // UNITS=1: every shape in its own unit (×10^u, u ∈ [−3, 3] from its name).
+            if std::env::var("UNITS").is_ok() {
+                if let Shape::Mesh(m) = &s {
+                    let f = unit_factor(n);
+                    let v: Vec<[f64; 3]> = m.vertices().iter().map(|p| p.map(|c| c * f)).collect();
+                    s = Shape::Mesh(funcorr::shape::TriMesh::new(v, m.faces().to_vec())?);
+                }
+            }
             // CLOUD=x: the parts (X, `*_cut`) as point clouds of their vertices (with `MODE`
             // always, the default: a cloud has no boundary to detect).
             if std::env::var("CLOUD").as_deref() == Ok("x") && n.ends_with("_cut") {
@@ -129,8 +139,12 @@ fn main() -> Result<()> {
             for (a, b, an, bn) in [(x, y, xn, yn), (y, x, yn, xn)] {
                 let d = partial::detect(a, b, &auto);
                 print(format!(
-                    "{{\"x\":\"{an}\",\"y\":\"{bn}\",\"partial\":{},\"ratio\":{:.4},\"boundary\":{:?},\"reason\":\"{}\"}}",
-                    d.partial, d.area_ratio, d.boundary_x, d.reason
+                    "{{\"x\":\"{an}\",\"y\":\"{bn}\",\"partial\":{},\"ratio\":{:.4},\"heat_ratio\":{},\"boundary\":{:?},\"reason\":\"{}\"}}",
+                    d.partial,
+                    d.area_ratio,
+                    d.heat_ratio.map_or("null".to_string(), |r| format!("{r:.4}")),
+                    d.boundary_x,
+                    d.reason
                 ));
             }
         });
@@ -261,4 +275,11 @@ fn main() -> Result<()> {
         print(line);
     });
     Ok(())
+}
+
+/// `UNITS=1`: the factor 10^u of a shape, u uniform in [−3, 3] from a hash of its name (FNV-1a),
+/// the same in every run.
+fn unit_factor(name: &str) -> f64 {
+    let h = name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3));
+    10f64.powf(6.0 * (h % 1_000_003) as f64 / 1_000_003.0 - 3.0)
 }

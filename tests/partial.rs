@@ -207,9 +207,10 @@ fn a_point_cloud_part_is_matched_with_partial() {
 }
 
 /// The part's units do not matter: the cut copy in millimetres or in kilometres against the
-/// whole in metres (`--partial`: the detection compares areas in the inputs' units) gets its
-/// area ratio from the heat kernels ([`funcorr::matching::heat_scale`]), within 10 % of the
-/// true one, and the same map at both scales.
+/// whole in metres is detected as a part (its area in the inputs' units is 10⁶ times Y's: then
+/// by the heat ratio; or 10⁻⁶ times) and gets its area ratio from the heat kernels
+/// ([`funcorr::matching::heat_scale`]), within 10 % of the true one, in the detection and in the
+/// pipeline, and the same map at both scales.
 #[test]
 fn a_part_in_other_units_gets_its_area_ratio_from_the_heat_kernels() {
     let whole = mesh("tr_reg_000.off");
@@ -225,10 +226,18 @@ fn a_part_in_other_units_gets_its_area_ratio_from_the_heat_kernels() {
             TriMesh::new(part.vertices().iter().map(|p| p.map(|c| c * s)).collect(), part.faces().to_vec()).unwrap();
         let x = prepare(scaled);
         let mut opts = MatchOptions::default();
-        opts.partial.mode = PartialMode::Always;
         opts.partial.wks = Some(WksRecipe::default());
+        // Detected: by its area in the inputs' units when that is small, else by the heat ratio.
+        let det = detect(&x, &y, &opts.partial);
+        eprintln!("scale {s}: {}", det.reason);
+        assert!(det.partial, "{det:?}");
+        if det.area_ratio > opts.partial.max_area_ratio {
+            let heat = det.heat_ratio.expect("a ratio from the heat kernels");
+            assert!((heat / truth - 1.0).abs() <= 0.1, "{det:?}, true ratio {truth}");
+        }
         let (f, g) = pair_wks(&x, &y, &WksRecipe::default()).unwrap();
         let r = run(&x, &y, &f, &g, &opts).unwrap();
+        assert!(r.partial.as_ref().is_some_and(|d| d.partial), "not detected in the pipeline");
         let used = r.partial.as_ref().unwrap().used_ratio.unwrap();
         eprintln!(
             "scale {s}: area ratio in the inputs' units {:.3e}, used {used:.3}, true {truth:.3}",
