@@ -323,7 +323,7 @@ fn propagate_orientation(points: &[[f64; 3]], nbrs: &[Vec<usize>], normals: &mut
 /// Consistently oriented normals of a cloud whose normals are given but whose signs cannot be
 /// trusted (a scanner's or a file's normals, some of them reversed): the lines of `normals` are
 /// kept, their signs are chosen by the same propagation as [`cloud_surface`]'s (a minimum spanning
-/// tree of [`propagation_cost`] over the [`ORIENTATION_NEIGHBOURS`] nearest neighbours, from the
+/// tree of `propagation_cost` over the [`ORIENTATION_NEIGHBOURS`] nearest neighbours, from the
 /// point of each component with the largest x, whose normal is made to point to +x — outward on
 /// a closed surface). Any share of reversed inputs gives the same result: only the lines are used.
 ///

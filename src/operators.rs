@@ -272,7 +272,7 @@ crate::linalg::at_vector_width! {
 /// Cost O(n_f · k · (k + 3) · q). Computed over blocks of faces, every descriptor per block, so
 /// that the basis' face gradients and means are read once (not once per descriptor) and the
 /// n_f × k products live only block by block; memory: three n_f × k gradient matrices, the
-/// n_f × k means, and at most [`FACE_GROUPS`] partial sums of the q operators.
+/// n_f × k means, and at most `FACE_GROUPS` partial sums of the q operators.
 pub fn orientation_operators(
     grads: &FaceGradients,
     phi: MatRef<f64>,

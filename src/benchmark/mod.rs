@@ -10,8 +10,8 @@
 //! data, `segmentation/A_B.S.seg.sym` (one 1-based label per vertex of shape S of the pair
 //! (A, B)). Files directly in the directory (`NAME.vts`, `A_B.S.seg.sym`) are accepted too.
 //!
-//! Split by concern: the data set (this file), the data of a pair ([`data`]), the run
-//! ([`run()`], module `run`), the report ([`report`]).
+//! Split by concern: the data set (this file), the data of a pair (`data`), the run
+//! ([`run()`], module `run`), the report (`report`).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};

@@ -75,7 +75,7 @@ const GROUPS: usize = 4;
 /// the n columns of T in chunks of this many, the chunks added in f64).
 const F32_CHUNK: usize = 512;
 
-/// The arithmetic of the products of [`soft_l1`] (the smoothed |·|, its derivative and every sum
+/// The arithmetic of the products of `soft_l1` (the smoothed |·|, its derivative and every sum
 /// across blocks are in f64 either way).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]

@@ -11,7 +11,7 @@ use serde::Serialize;
 use crate::error::Result;
 use crate::optim::{self, LbfgsOptions, Minimum, Stop};
 
-/// Options of the completion optimizers ([`super::optimize`], [`minimize`], the Riemannian CG of
+/// Options of the completion optimizers ([`super::optimize`], `minimize`, the Riemannian CG of
 /// the fixed-rank form): the shared L-BFGS options (the CG reads the iteration cap and the two
 /// tolerances).
 pub type OptimizeOptions = LbfgsOptions;

@@ -16,8 +16,8 @@
 //! ```
 //!
 //! The vertex-space forms — fixed rank (8), convex low rank (9), low norm (10) — are in
-//! [`full`], [`fixed_rank`] (Riemannian CG on the manifold of rank-k matrices, as manopt) and
-//! [`convex`] (ADMM); [`solve()`] runs any of them.
+//! `full`, `fixed_rank` (Riemannian CG on the manifold of rank-k matrices, as manopt) and
+//! `convex` (ADMM); [`solve()`] runs any of them.
 //!
 //! ## Mass placement
 //! The bases are mass-orthonormal (Φᵀ A_X Φ = I), so the coefficients of the data F (n × q) are
@@ -43,12 +43,12 @@
 //!
 //! Default weights ([`CompletionParams::defaults_for_form`]): μ1 = μ2 = 0.01, μ3 = 0.01,
 //! μ4 = 0.001, ξ = 0.01 for the subspace form; the vertex forms (8)–(10) take μ1 = μ2 = 0.3
-//! ([`objective::VERTEX_DIRICHLET`]), because on the vertices the Dirichlet terms alone do what
+//! (`objective::VERTEX_DIRICHLET`), because on the vertices the Dirichlet terms alone do what
 //! the truncation to k' eigenfunctions does in (11).
 //!
-//! Modules: [`terms`] (each term of (11) with its gradient), [`l1`] (the blocked L1 kernel),
-//! [`objective`] (their weighted sum), [`lbfgs`] and [`optimize`](mod@optimize) (L-BFGS with a
-//! strong-Wolfe line search, initializations), [`full`], [`fixed_rank`], [`convex`], [`solve`].
+//! Modules: [`terms`] (each term of (11) with its gradient), `l1` (the blocked L1 kernel),
+//! `objective` (their weighted sum), `lbfgs` and `optimize` (L-BFGS with a
+//! strong-Wolfe line search, initializations), `full`, `fixed_rank`, `convex`, [`solve`].
 
 pub(crate) mod convex;
 pub(crate) mod fixed_rank;

@@ -95,7 +95,7 @@ impl CompletionParams {
     /// - Subspace form (11): [`Self::defaults_for`].
     /// - Vertex forms (8)–(10) with [`Scaling::Unit`]: the same μ3, ξ (and μ4 for (9), (10); μ4 = 0
     ///   for the fixed-rank form (8), which has no low-norm term), but μ1 = μ2 =
-    ///   [`VERTEX_DIRICHLET`] = 0.3 instead of 0.01. In (11) T = Ψ_k' A Bᵀ Φ_k'ᵀ cannot leave the
+    ///   `VERTEX_DIRICHLET` = 0.3 instead of 0.01. In (11) T = Ψ_k' A Bᵀ Φ_k'ᵀ cannot leave the
     ///   first k' eigenfunctions; on the vertices nothing but the Dirichlet terms keeps T smooth,
     ///   and the L1 term alone favours spiky, high-frequency kernels. With the scale-free
     ///   Dirichlet weights (λ_j / Σ_{l ≤ k'} λ_l, an orthonormal k'-map costs 1), a component of

@@ -39,7 +39,7 @@ pub(crate) fn unpack(x: &[f64], kp: usize, k: usize) -> (Mat<f64>, Mat<f64>) {
 }
 
 /// Minimizes (11) over (A, B) from (`a0`, `b0`) (both k' × k) by L-BFGS with a strong-Wolfe
-/// line search ([`super::lbfgs::minimize`]). Every accepted step satisfies sufficient decrease,
+/// line search (`super::lbfgs::minimize`). Every accepted step satisfies sufficient decrease,
 /// so the objective is non-increasing. Stops on relative objective change ≤ `rel_tol`, on
 /// ‖∇f‖ ≤ `grad_tol`·‖∇f₀‖, at the iteration cap, or when a line search finds no decrease.
 pub fn optimize(

@@ -28,7 +28,7 @@ pub enum Form {
     Subspace,
     /// (8): T = U Vᵀ of fixed rank k on the vertices (U: m × k, V: n × k).
     FixedRank,
-    /// (9): convex, nuclear norm on the whole m × n T (small shapes, [`convex::MAX_ENTRIES`]).
+    /// (9): convex, nuclear norm on the whole m × n T (small shapes, `convex::MAX_ENTRIES`).
     LowRank,
     /// (10): T = U Vᵀ with the low-norm penalty ½ (‖U‖² + ‖V‖²), on the vertices.
     LowNorm,
@@ -173,7 +173,7 @@ impl CompletionOptions {
 }
 
 /// What the optimizer of a completion form did: a descent method (L-BFGS or the Riemannian CG,
-/// [`CompletionReport`]) or ADMM (the low-rank form (9), [`AdmmReport`]). Serialized as the
+/// [`CompletionReport`]) or ADMM (the low-rank form (9), `AdmmReport`). Serialized as the
 /// report inside (no tag).
 #[derive(Clone, Debug, Serialize)]
 #[serde(untagged)]

@@ -1,5 +1,5 @@
 //! The terms of problem (11), each *unweighted* with its gradient with respect to A and B
-//! (both k' × k). The weights μ are applied in [`super::objective`].
+//! (both k' × k). The weights μ are applied in `super::objective`.
 //!
 //! Several terms depend on (A, B) only through C = A Bᵀ (k' × k'); for those, with
 //! G = ∂f/∂C, the chain rule gives ∇_A f = G B and ∇_B f = Gᵀ A.
@@ -134,12 +134,12 @@ pub fn low_norm(a: MatRef<f64>, b: MatRef<f64>, grams: Option<(MatRef<f64>, MatR
 
 /// L1 term of (11) without its weight: Σ_ij w_ij √(t_ij² + ξ) over T = Ψ_k' A Bᵀ Φ_k'ᵀ (m × n),
 /// the smooth approximation |t| ≈ √(t² + ξ) of the paper, with optional entry weights
-/// w_ij = w^Y_i w^X_j ([`super::scaling`]).
+/// w_ij = w^Y_i w^X_j (`super::scaling`).
 ///
 /// With U = Ψ A (m × k), V = Φ B (n × k), T = U Vᵀ and S = ∂/∂T:
 /// ∇_A = Ψᵀ S V = Z B and ∇_B = Φᵀ Sᵀ U = Zᵀ A with Z = Ψᵀ S Φ (k' × k').
 ///
-/// T is never stored (see [`super::l1`]). When k' < 2k, Z is accumulated directly
+/// T is never stored (see `super::l1`). When k' < 2k, Z is accumulated directly
 /// (2·m·n·(k + k') flops), otherwise S V and Sᵀ U are (6·m·n·k flops); memory
 /// O((m + n)·k' + block·n).
 #[allow(clippy::too_many_arguments)]

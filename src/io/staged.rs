@@ -15,7 +15,7 @@
 //!    no manifest means a publish is in progress or was interrupted. Files the user put in
 //!    `<dir>` themselves are never touched: only names listed in a funcorr manifest are deleted.
 //! 4. Nothing is deleted, renamed or opened outside `<dir>`: every step resolves one component
-//!    at a time below `<dir>` without following a symbolic link ([`super::beneath`]). A
+//!    at a time below `<dir>` without following a symbolic link (`super::beneath`). A
 //!    manifest entry under a link is skipped; a link (or a file) in the way of an output's
 //!    directory is an error before anything changes; the lock file and the manifest are opened
 //!    only as regular files (never through a link, never blocking on a FIFO).

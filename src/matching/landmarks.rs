@@ -17,7 +17,7 @@
 //!    distortion and data misfit (a candidate that does not respect the landmarks is wrong). With
 //!    the basin search, one more candidate is made from the landmarks alone: every search sample
 //!    of X placed at the anchor of Y whose distances to the b_l best agree with its distances to
-//!    the a_l (an L1 trilateration, [`LandmarkData::trilateration_costs`]), corrected by the
+//!    the a_l (an L1 trilateration, `LandmarkData::trilateration_costs`), corrected by the
 //!    search's rounds with that cost as their data term ([`super::search::correct`]).
 //! 3. **Refinement.** The landmarks are samples of every ZoomOut (probes and final) and of the
 //!    polish, with `pin_weight` times the mean sample weight, and pinned there: a_l is matched to

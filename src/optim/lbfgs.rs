@@ -13,7 +13,7 @@ use serde::Serialize;
 use super::{tolerances_met, Minimum, Report, Stop, Value};
 use crate::error::{Error, Result};
 
-/// Options of [`minimize`] and [`line_search`].
+/// Options of [`minimize`] and `line_search`.
 #[derive(Clone, Debug, Serialize)]
 pub struct LbfgsOptions {
     /// Iteration cap.

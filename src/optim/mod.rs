@@ -1,14 +1,14 @@
 //! General smooth optimizers; the modules that use them only supply objectives.
 //!
 //! - [`lbfgs`]: unconstrained minimization of f: Rⁿ → R by L-BFGS with a strong-Wolfe line
-//!   search ([`lbfgs::minimize`], [`lbfgs::line_search`]). The objective is a closure that
+//!   search ([`lbfgs::minimize`], `lbfgs::line_search`). The objective is a closure that
 //!   returns f(x) and writes ∇f(x) into a buffer the optimizer provides.
 //! - [`rcg`]: Riemannian conjugate gradients ([`rcg::minimize`]) on any manifold described by
 //!   the small [`rcg::Manifold`] trait (metric, projection of a Euclidean gradient onto the
 //!   tangent space, retraction, vector transport); the objective ([`rcg::Objective`]) gives f
 //!   and its Euclidean gradient.
 //!
-//! Layer 0 (beside [`crate::linalg`]): this module imports nothing from the rest of the crate
+//! Layer 0 (beside `crate::linalg`): this module imports nothing from the rest of the crate
 //! but [`crate::error`]. Users: `completion` (the subspace, low-norm and fixed-rank forms) and
 //! `fmap::coupled` (eq. (7) on O(k) × O(k)).
 //!

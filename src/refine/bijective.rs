@@ -211,7 +211,7 @@ fn bijective_round(
 /// coupling and bijectivity terms (as in the bijective ZoomOut of Magnet et al.'s
 /// SmoothFunctionalMaps): both point maps π_xy, π_yx and both pull-backs C_yx, C_xy are refined
 /// together while the size grows from that of the start maps to K; each point map uses both
-/// functional maps ([`bijective_map`]), each functional map both point maps. `c_yx0`, `c_xy0` are
+/// functional maps (`bijective_map`), each functional map both point maps. `c_yx0`, `c_xy0` are
 /// k × k starts (C_xy ≈ C_yxᵀ for near-isometries). Returns (C_yx, map_xy on every vertex of X,
 /// map_yx on every vertex of Y).
 pub fn bijective_zoomout(
@@ -261,8 +261,8 @@ pub const POLISH_BIJECTIVITY: f64 = 1.0;
 /// Bijective polish of a refined map (the discrete solver of Ren, Melzi, Wonka, Ovsjanikov 2021
 /// at a fixed size): from C_yx (K × K, e.g. ZoomOut's result) and C_xy = C_yxᵀ (the inverse of an
 /// orthonormal pull-back), `rounds` alternations of both point maps on the samples of each shape
-/// (samples of X matched to samples of Y and back, [`bijective_map`] with weight
-/// [`POLISH_BIJECTIVITY`]) and both functional maps ([`bijective_fmap`]); then the point map of
+/// (samples of X matched to samples of Y and back, `bijective_map` with weight
+/// [`POLISH_BIJECTIVITY`]) and both functional maps (`bijective_fmap`); then the point map of
 /// every vertex of X with the orthogonality, coupling and bijectivity terms. On every faust_r
 /// pair one round after ZoomOut lowers the mean error on 64 of 97 pairs and raises it on 30, by
 /// at most 0.1 ×100 (EXPERIMENTS.md). `scope` says where the final map of every vertex is
