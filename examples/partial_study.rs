@@ -160,8 +160,7 @@ fn main() -> Result<()> {
         if std::env::var("SCALE_ONLY").is_ok() {
             // The heat-kernel scale estimate against the true covered fraction.
             let true_ratio = covered_fraction(&covered_truth(ym, &tx, &ty), &y.basis.mass);
-            let xs = funcorr::spatial::farthest_point_samples(x.positions().unwrap(), &x.basis.mass, 500).unwrap();
-            let est = funcorr::matching::heat_scale::heat_scale_ratio(&x.basis, &y.basis, &xs.vertices, (0.1, 1.2), Some(x.area / y.area));
+            let est = partial::part_heat_scale(x, y, (0.1, 1.2), Some(x.area / y.area));
             let secs = t.elapsed().as_secs_f64();
             print(format!(
                 "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"area_ratio\":{:.4},\"true_ratio\":{true_ratio:.4},\"heat\":{:.4},\"energy\":{:.5},\"e0\":{:.5},\"seconds\":{secs:.2}}}",

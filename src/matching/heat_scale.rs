@@ -24,6 +24,13 @@
 //! samples near X's cut (their heat reaches the boundary) and those whose partners X does not
 //! hold. r = argmin E. k_t is truncated to the basis
 //! and completed by Weyl's law at unit area: Σ_{i>k} e^{−λ_i t} φ_i(v)² ≈ e^{−λ_k t} / (4π t).
+//!
+//! **Near X's cut.** Heat on the part is reflected at its boundary (Neumann), which Y, whole
+//! there, does not do: by the method of images for a straight boundary at distance d,
+//! t k_t(x, x) = (1 + e^{−d²/t}) / 4π, so a sample near a cut looks like a smaller shape and the
+//! ratio errs high where the cut is long (more than the discarded quarter of the samples lie
+//! near it). Given each sample's distance d to X's boundary (unit area), X's profiles are
+//! corrected by that first-order term: p_X(x; r)_j − log(1 + e^{−d² r / t_j}).
 
 use kiddo::ImmutableKdTree;
 use rayon::prelude::*;
@@ -96,11 +103,14 @@ fn profile_variance(p: &[[f64; TIMES]]) -> f64 {
 /// samples `xs` (vertex ids of X, the rows whose profiles are matched) against every vertex of
 /// Y, r searched in lo ..= hi (dimensionless, 0 < lo < hi). Errors: bases with fewer than 2
 /// eigenpairs or a non-positive largest eigenvalue, no samples, a sample out of range, a bad
-/// range.
+/// range, boundary distances of another length or negative or NaN. `boundary`: the geodesic
+/// distance of every sample to X's boundary at X's unit area (module docs, "Near X's cut"; ∞
+/// for a sample that reaches no boundary; None for a shape without one).
 pub fn heat_scale_ratio(
     x: &Basis,
     y: &Basis,
     xs: &[usize],
+    boundary: Option<&[f64]>,
     (lo, hi): (f64, f64),
     prior: Option<f64>,
 ) -> Result<HeatScale> {
@@ -120,6 +130,14 @@ pub fn heat_scale_ratio(
     if let Some(&v) = xs.iter().find(|&&v| v >= x.n()) {
         return Err(Error::invalid("samples", format!("vertex {v} of X, which has {}", x.n())));
     }
+    if let Some(d) = boundary {
+        if d.len() != xs.len() || d.iter().any(|v| v.is_nan() || *v < 0.0) {
+            return Err(Error::invalid(
+                "boundary distances",
+                format!("need one distance ≥ 0 per sample ({}), got {} values", xs.len(), d.len()),
+            ));
+        }
+    }
     // X is read at t / r ≥ t / hi: both truncations resolve the first time at every r ≤ hi.
     let t0 = FIRST_TIME / ly.min(lx * hi);
     let times: [f64; TIMES] = std::array::from_fn(|j| t0 * TIME_SPAN.powf(j as f64 / (TIMES - 1) as f64));
@@ -127,7 +145,15 @@ pub fn heat_scale_ratio(
     let py = log_profiles(y, &all_y, &times, 1.0);
     let tree: ImmutableKdTree<f64, TIMES> = ImmutableKdTree::new_from_slice(&py);
     let energy = |r: f64| -> f64 {
-        let px = log_profiles(x, xs, &times, 1.0 / r);
+        let mut px = log_profiles(x, xs, &times, 1.0 / r);
+        if let Some(d) = boundary {
+            // The reflection at the cut (module docs, "Near X's cut"), X's times t_j / r.
+            for (p, &d) in px.iter_mut().zip(d) {
+                for (q, &t) in p.iter_mut().zip(&times) {
+                    *q -= (-d * d * r / t).exp().ln_1p();
+                }
+            }
+        }
         let mut d: Vec<f64> = px.par_iter().map(|q| tree.nearest_one::<kiddo::SquaredEuclidean>(q).distance).collect();
         d.sort_by(|a, b| a.total_cmp(b));
         let kept = ((d.len() as f64 * KEPT).ceil() as usize).clamp(1, d.len());
@@ -174,13 +200,13 @@ mod tests {
     fn a_whole_shape_against_itself_has_ratio_one() {
         let b = basis();
         let xs: Vec<usize> = (0..b.n()).step_by(3).collect();
-        let h = heat_scale_ratio(&b, &b, &xs, (0.1, 1.2), Some(1.0)).unwrap();
+        let h = heat_scale_ratio(&b, &b, &xs, None, (0.1, 1.2), Some(1.0)).unwrap();
         assert!((h.ratio - 1.0).abs() <= 0.01, "{h:?}");
         // The prior is the minimum (0: every sample is its own partner).
         assert!(h.prior_energy.unwrap() <= h.energy + 1e-15, "{h:?}");
         assert!(h.times.windows(2).all(|w| w[1] > w[0]) && h.times.len() == TIMES);
         // A ratio far from 1 fits worse.
-        let far = heat_scale_ratio(&b, &b, &xs, (0.1, 1.2), Some(0.3)).unwrap();
+        let far = heat_scale_ratio(&b, &b, &xs, None, (0.1, 1.2), Some(0.3)).unwrap();
         assert!(far.prior_energy.unwrap() > 2.0 * h.energy.max(1e-6), "{far:?}");
     }
 
@@ -190,12 +216,32 @@ mod tests {
         for (range, what) in
             [((0.0, 1.0), "scale range"), ((1.0, 0.5), "scale range"), ((0.1, f64::NAN), "scale range")]
         {
-            let e = heat_scale_ratio(&b, &b, &[0], range, None).unwrap_err().to_string();
+            let e = heat_scale_ratio(&b, &b, &[0], None, range, None).unwrap_err().to_string();
             assert!(e.contains(what), "{e}");
         }
-        let e = heat_scale_ratio(&b, &b, &[], (0.1, 1.0), None).unwrap_err().to_string();
+        let e = heat_scale_ratio(&b, &b, &[], None, (0.1, 1.0), None).unwrap_err().to_string();
         assert!(e.contains("samples"), "{e}");
-        let e = heat_scale_ratio(&b, &b, &[b.n()], (0.1, 1.0), None).unwrap_err().to_string();
+        let e = heat_scale_ratio(&b, &b, &[b.n()], None, (0.1, 1.0), None).unwrap_err().to_string();
         assert!(e.contains("samples") && e.contains(&b.n().to_string()), "{e}");
+        for d in [vec![0.1], vec![0.1, f64::NAN], vec![0.1, -1.0]] {
+            let e = heat_scale_ratio(&b, &b, &[0, 1], Some(&d), (0.1, 1.0), None).unwrap_err().to_string();
+            assert!(e.contains("boundary distances"), "{e}");
+        }
+    }
+
+    /// The correction near a cut vanishes far from it: samples at distance ∞ from a boundary
+    /// give the ratio and energy of no boundary; samples on the boundary (d = 0) are read as if
+    /// their heat were halved, which moves the ratio.
+    #[test]
+    fn the_cut_correction_acts_only_near_the_cut() {
+        let b = basis();
+        let xs: Vec<usize> = (0..b.n()).step_by(3).collect();
+        let plain = heat_scale_ratio(&b, &b, &xs, None, (0.1, 1.2), None).unwrap();
+        let far = vec![f64::INFINITY; xs.len()];
+        let with = heat_scale_ratio(&b, &b, &xs, Some(&far), (0.1, 1.2), None).unwrap();
+        assert_eq!((plain.ratio, plain.energy), (with.ratio, with.energy));
+        let on = vec![0.0; xs.len()];
+        let halved = heat_scale_ratio(&b, &b, &xs, Some(&on), (0.1, 1.2), None).unwrap();
+        assert!(halved.ratio < 0.9 * plain.ratio, "{halved:?} against {plain:?}");
     }
 }

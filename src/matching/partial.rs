@@ -17,9 +17,10 @@
 //!    and a whole in metres. By default ([`PartialScale::Heat`]) r is found without units from
 //!    the heat kernels ([`super::heat_scale`]: X's log-time heat profiles shifted by log r
 //!    against Y's), and area(X) / area(Y) is kept when the profiles fit it within
-//!    [`HEAT_PRIOR_TOLERANCE`] of the best r. On faust_r_partial the ratio so found is off the
-//!    covered fraction by 3.7 % (median; 8 of 97 pairs by more than 15 %) against 8.7 % (35
-//!    pairs) for the area ratio; on tosca_r_partial (shared scale) both 3.1–3.2 %
+//!    [`HEAT_PRIOR_TOLERANCE`] of the best r ([`part_heat_scale`]: X's profiles corrected for the
+//!    reflection of heat at its cut). On faust_r_partial the ratio so found is off the covered
+//!    fraction by 3.9 % (median; 11 of 97 pairs by more than 15 %, the worst 52 %) against 8.7 %
+//!    (35 pairs) for the area ratio; on tosca_r_partial (shared scale) 3.1 % (none above 15 %)
 //!    (EXPERIMENTS.md). The data ([`pair_wks`]) are then computed again at r. The older
 //!    estimate from sample maps found by geodesic distances alone ([`estimate_ratio()`],
 //!    [`PartialScale::Distances`]) errs low on many pairs.
@@ -203,17 +204,44 @@ fn relative_boundary(s: &PreparedShape) -> Option<f64> {
     Some(length.abs() / s.area.sqrt())
 }
 
-/// The area ratio of X to Y without units ([`super::heat_scale::heat_scale_ratio`] over
-/// [0.1, [`DETECT_RANGE_FACTOR`] · `max_area_ratio`], X's [`HEAT_SAMPLES`] farthest samples); None
-/// for shapes without positions or when it cannot be estimated (too few eigenpairs).
+/// The heat-kernel scale of a part X against Y ([`super::heat_scale::heat_scale_ratio`]) on
+/// X's 500 farthest-point samples, with their geodesic distances to X's boundary
+/// when X is a mesh with one (the correction near the cut), over `range`. Errors: X without
+/// positions, and as [`super::heat_scale::heat_scale_ratio`].
+pub fn part_heat_scale(
+    x: &PreparedShape,
+    y: &PreparedShape,
+    range: (f64, f64),
+    prior: Option<f64>,
+) -> Result<super::heat_scale::HeatScale> {
+    let positions =
+        x.positions().ok_or_else(|| Error::invalid("shapes", "the heat scale of a part needs its vertex positions"))?;
+    let xs = crate::spatial::farthest_point_samples(positions, &x.basis.mass, HEAT_SAMPLES)?;
+    let boundary: Vec<usize> = match &x.shape {
+        Shape::Mesh(_) => x
+            .triangles()
+            .map_or_else(Vec::new, |t| t.boundary_loops().into_iter().flatten().map(|v| v as usize).collect()),
+        _ => Vec::new(),
+    };
+    let distances = match (boundary.is_empty(), x.triangles()) {
+        (false, Some(t)) => {
+            let (d, _) = GraphGeodesics::mesh_edges(t)?.nearest_sources(&boundary)?;
+            Some(xs.vertices.iter().map(|&v| d[v]).collect::<Vec<f64>>())
+        }
+        _ => None,
+    };
+    super::heat_scale::heat_scale_ratio(&x.basis, &y.basis, &xs.vertices, distances.as_deref(), range, prior)
+}
+
+/// The area ratio of X to Y without units ([`part_heat_scale`] over [0.1,
+/// [`DETECT_RANGE_FACTOR`] · `max_area_ratio`]); None when it cannot be estimated (no positions,
+/// too few eigenpairs).
 fn unitless_ratio(x: &PreparedShape, y: &PreparedShape, max_area_ratio: f64) -> Option<f64> {
     let hi = DETECT_RANGE_FACTOR * max_area_ratio;
     if !(hi.is_finite() && hi > HEAT_RANGE.0) {
         return None;
     }
-    let xs = crate::spatial::farthest_point_samples(x.positions()?, &x.basis.mass, HEAT_SAMPLES).ok()?;
-    let h = super::heat_scale::heat_scale_ratio(&x.basis, &y.basis, &xs.vertices, (HEAT_RANGE.0, hi), None).ok()?;
-    Some(h.ratio)
+    part_heat_scale(x, y, (HEAT_RANGE.0, hi), None).ok().map(|h| h.ratio)
 }
 
 /// Whether X is a part of Y (module docs, "Detection"), or what `opts.mode` says.
@@ -231,9 +259,10 @@ pub fn detect(x: &PreparedShape, y: &PreparedShape, opts: &PartialOptions) -> De
             let open = b - boundary_y.unwrap_or(0.0) >= opts.min_boundary;
             // The areas are in the inputs' units, which two files need not share (a part in
             // millimetres, the whole in metres): where they say that an open X is too large,
-            // the ratio without units decides. Not everywhere: on parts whose cut is long
-            // (boundary ≳ 3 √area) the heat reaches the cut early and the heat ratio errs high
-            // (5 of the 206 parts of faust_r_partial and tosca_r_partial, EXPERIMENTS.md).
+            // the ratio without units decides. Not everywhere: where the units are shared the
+            // areas are exact, and on parts whose cut is long (boundary ≳ 3 √area) the heat ratio
+            // erred high before its correction at the cut (5 of the 206 parts of faust_r_partial
+            // and tosca_r_partial, EXPERIMENTS.md).
             let small_in_units = area_ratio <= opts.max_area_ratio;
             heat_ratio = if open && !small_in_units { unitless_ratio(x, y, opts.max_area_ratio) } else { None };
             let (ratio, what) = match heat_ratio {
@@ -590,9 +619,8 @@ pub fn partial_pipeline(
             }
         }
         PartialScale::Heat => {
-            let xs = crate::spatial::farthest_point_samples(px, &x.basis.mass, HEAT_SAMPLES)?;
             let prior = Some(r0).filter(|r| (HEAT_RANGE.0..=HEAT_RANGE.1).contains(r));
-            let h = super::heat_scale::heat_scale_ratio(&x.basis, &y.basis, &xs.vertices, HEAT_RANGE, prior)?;
+            let h = part_heat_scale(x, y, HEAT_RANGE, prior)?;
             match h.prior_energy {
                 Some(e0) if e0 <= (1.0 + HEAT_PRIOR_TOLERANCE) * h.energy => r0,
                 _ => h.ratio,
