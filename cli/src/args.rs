@@ -420,8 +420,8 @@ pub(crate) struct PipelineArgs {
     pub(crate) polish: usize,
     /// X is a part of Y (a cut, a scan from one side): match it with the partial path
     /// (rectangular functional maps, coverage of Y). Without it the axiomatic method detects a
-    /// part by its boundary (longer than Y's by ≥ 0.25 √area) and area (≤ 1.5 × Y's, measured
-    /// without units from the heat kernels); report.json says what it found.
+    /// part by its boundary (longer than Y's by ≥ 0.25 √area) and area (≤ 1.5 × Y's; from the
+    /// heat kernels where the inputs' units make X look larger); report.json says what it found.
     #[arg(long, conflicts_with = "no_partial")]
     pub(crate) partial: bool,
     /// Match X as a whole shape even when it looks like a part of Y (no detection): the
