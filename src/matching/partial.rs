@@ -217,16 +217,16 @@ pub fn part_heat_scale(
     let positions =
         x.positions().ok_or_else(|| Error::invalid("shapes", "the heat scale of a part needs its vertex positions"))?;
     let xs = crate::spatial::farthest_point_samples(positions, &x.basis.mass, HEAT_SAMPLES)?;
-    let boundary: Vec<usize> = match &x.shape {
-        Shape::Mesh(_) => x
-            .triangles()
-            .map_or_else(Vec::new, |t| t.boundary_loops().into_iter().flatten().map(|v| v as usize).collect()),
-        _ => Vec::new(),
-    };
-    let distances = match (boundary.is_empty(), x.triangles()) {
-        (false, Some(t)) => {
-            let (d, _) = GraphGeodesics::mesh_edges(t)?.nearest_sources(&boundary)?;
-            Some(xs.vertices.iter().map(|&v| d[v]).collect::<Vec<f64>>())
+    // A mesh's boundary only: a point cloud's triangle soup has open edges everywhere.
+    let distances = match (&x.shape, x.triangles()) {
+        (Shape::Mesh(_), Some(t)) => {
+            let boundary: Vec<usize> = t.boundary_loops().into_iter().flatten().map(|v| v as usize).collect();
+            if boundary.is_empty() {
+                None
+            } else {
+                let (d, _) = GraphGeodesics::mesh_edges(t)?.nearest_sources(&boundary)?;
+                Some(xs.vertices.iter().map(|&v| d[v]).collect::<Vec<f64>>())
+            }
         }
         _ => None,
     };
