@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use super::pullback::{rows_near, sample_images_near, Near, Scope};
 use crate::error::{Error, Result};
-use crate::linalg::{gather_rows_into, mul};
+use crate::linalg::{gather_rows, gather_rows_into, mul};
 use crate::pointwise::nearest_neighbors;
 use crate::spatial::Samples;
 
@@ -98,8 +98,21 @@ fn bijective_map(
     Ok(nearest_neighbors(reference.as_ref(), query.as_ref())?.into_iter().map(|t| refs[t]).collect())
 }
 
+/// Rows of Y per block of [`bijective_embeddings`]' reference rows.
+const EMBEDDING_BLOCK: usize = 2048;
+
 /// The embeddings of [`bijective_map`]: the reference rows `refs` of Y and the query rows `rows`
-/// of X (each × 3k), whose squared distance is the map's cost.
+/// of X (each × (k + 1)), whose squared distance is the map's cost up to a constant per query
+/// row, so both have the same nearest reference row.
+///
+/// The cost of i ↦ j, ‖Φ_i − (Ψ C_yxᵀ)_j‖² + ‖(Φ C_yx)_i − Ψ_j‖² + w ‖Φ_i − (Ψ C_xy)_j‖², is, up
+/// to terms of i alone, β_j − 4 Φ_i · b_j with b_j = (Ψ B)_j, B = C_yxᵀ + (w/2) C_xy (the two
+/// first cross terms are both Φ_i · (Ψ C_yxᵀ)_j) and β_j = ‖(Ψ C_yxᵀ)_j‖² + ‖Ψ_j‖² +
+/// w ‖(Ψ C_xy)_j‖². With the query row [2 Φ_i, 0] and the reference row [b_j, c_j],
+/// c_j² = β_j − ‖b_j‖² + μ (μ ≥ 0 the smallest shift making every c_j² ≥ 0), the squared
+/// distance is 4 ‖Φ_i‖² + μ + β_j − 4 Φ_i · b_j: one k-dimensional search instead of the three
+/// stacked terms' 3k dimensions, and no n × 3k matrix (the reference is built in blocks of
+/// [`EMBEDDING_BLOCK`] rows of Y).
 fn bijective_embeddings(
     phi: MatRef<f64>,
     psi: MatRef<f64>,
@@ -109,25 +122,35 @@ fn bijective_embeddings(
     rows: &[usize],
     refs: &[usize],
 ) -> (Mat<f64>, Mat<f64>) {
+    use rayon::prelude::*;
     let k = c_yx.nrows();
     let (phi, psi) = (phi.subcols(0, k), psi.subcols(0, k));
-    let sw = w.sqrt();
-    // The three products side by side (each sequential), then the rows gathered column by
-    // column: the same entries as gathering them one by one.
-    let ((psi_ct, phi_c), psi_b) =
-        rayon::join(|| rayon::join(|| mul(psi, c_yx.transpose()), || mul(phi, c_yx)), || mul(psi, c_xy));
-    // [first | second | sw · third] of the gathered rows, written in place.
-    let stack = |rows: &[usize], parts: [(MatRef<f64>, f64); 3]| {
-        let mut out = Mat::<f64>::zeros(rows.len(), 3 * k);
-        for (i, (p, scale)) in parts.into_iter().enumerate() {
-            gather_rows_into(out.as_mut().subcols_mut(i * k, k), p, rows, 0..k, scale);
-        }
-        out
-    };
-    let (reference, query) = rayon::join(
-        || stack(refs, [(psi_ct.as_ref(), 1.0), (psi, 1.0), (psi_b.as_ref(), sw)]),
-        || stack(rows, [(phi, 1.0), (phi_c.as_ref(), 1.0), (phi, sw)]),
+    // [C_yxᵀ | C_xy | B] (k × 3k): one product per block of Ψ's rows gives all three.
+    let ops = Mat::from_fn(k, 3 * k, |a, c| match c / k {
+        0 => c_yx[(c, a)],
+        1 => c_xy[(a, c - k)],
+        _ => c_yx[(c - 2 * k, a)] + 0.5 * w * c_xy[(a, c - 2 * k)],
+    });
+    let mut reference = Mat::<f64>::zeros(refs.len(), k + 1);
+    // Blocks of rows of Y side by side; c_j² before the shift μ goes in the last column.
+    reference.as_mut().par_row_chunks_mut(EMBEDDING_BLOCK).zip(refs.par_chunks(EMBEDDING_BLOCK)).for_each(
+        |(mut out, chunk)| {
+            let rows_psi = gather_rows(psi, chunk, 0..k, 1.0);
+            let prod = mul(rows_psi.as_ref(), ops.as_ref());
+            let sq = |m: &Mat<f64>, s: usize, from: usize| (from..from + k).map(|c| m[(s, c)] * m[(s, c)]).sum::<f64>();
+            for s in 0..chunk.len() {
+                let beta = sq(&prod, s, 0) + sq(&rows_psi, s, 0) + w * sq(&prod, s, k);
+                out[(s, k)] = beta - sq(&prod, s, 2 * k);
+            }
+            out.subcols_mut(0, k).copy_from(prod.as_ref().subcols(2 * k, k));
+        },
     );
+    let shift = (0..refs.len()).map(|j| reference[(j, k)]).fold(0.0f64, |a, v| a.max(-v));
+    for j in 0..refs.len() {
+        reference[(j, k)] = (reference[(j, k)] + shift).max(0.0).sqrt();
+    }
+    let mut query = Mat::<f64>::zeros(rows.len(), k + 1);
+    gather_rows_into(query.as_mut().subcols_mut(0, k), phi, rows, 0..k, 2.0);
     (reference, query)
 }
 
@@ -324,4 +347,78 @@ pub fn bijective_polish_pinned(
         map_xy[i] = j;
     }
     Ok((c_yx, map_xy))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The cost of [`bijective_map`] written out: ‖Φ_i − (Ψ C_yxᵀ)_j‖² + ‖(Φ C_yx)_i − Ψ_j‖² +
+    /// w ‖Φ_i − (Ψ C_xy)_j‖².
+    fn cost(
+        phi: MatRef<f64>,
+        psi: MatRef<f64>,
+        c_yx: MatRef<f64>,
+        c_xy: MatRef<f64>,
+        w: f64,
+        i: usize,
+        j: usize,
+    ) -> f64 {
+        let k = c_yx.nrows();
+        let (a, b) = (phi.subrows(i, 1).subcols(0, k), psi.subrows(j, 1).subcols(0, k));
+        let (psi_ct, phi_c, psi_b) = (mul(b, c_yx.transpose()), mul(a, c_yx), mul(b, c_xy));
+        (0..k)
+            .map(|c| {
+                (a[(0, c)] - psi_ct[(0, c)]).powi(2)
+                    + (phi_c[(0, c)] - b[(0, c)]).powi(2)
+                    + w * (a[(0, c)] - psi_b[(0, c)]).powi(2)
+            })
+            .sum()
+    }
+
+    #[test]
+    fn the_embeddings_distance_is_the_cost_up_to_a_constant_per_query() {
+        let mut rng = crate::rng::Normal::new(5);
+        let (n, m, k) = (30, 5000, 7);
+        let mut g = |r: usize, c: usize, s: f64| Mat::from_fn(r, c, |_, _| s * rng.sample());
+        // Near-inverse maps (C_xy ≈ C_yxᵀ) and unrelated ones, with more basis columns than k.
+        let (phi, psi) = (g(n, k + 2, 1.0), g(m, k + 2, 1.0));
+        let c = g(k, k, 1.0);
+        for (c_xy, w) in [(c.transpose().to_owned() + g(k, k, 0.1), 1.0), (g(k, k, 2.0), 0.3), (g(k, k, 1.0), 0.0)] {
+            let rows: Vec<usize> = (0..n).rev().collect();
+            let refs: Vec<usize> = (0..m).step_by(3).collect();
+            let (reference, query) =
+                bijective_embeddings(phi.as_ref(), psi.as_ref(), c.as_ref(), c_xy.as_ref(), w, &rows, &refs);
+            assert_eq!(
+                (reference.nrows(), reference.ncols(), query.nrows(), query.ncols()),
+                (refs.len(), k + 1, n, k + 1)
+            );
+            for (s, &i) in rows.iter().enumerate() {
+                let d = |t: usize| (0..=k).map(|a| (query[(s, a)] - reference[(t, a)]).powi(2)).sum::<f64>();
+                let costs: Vec<f64> = refs
+                    .iter()
+                    .map(|&j| cost(phi.as_ref(), psi.as_ref(), c.as_ref(), c_xy.as_ref(), w, i, j))
+                    .collect();
+                let offset = d(0) - costs[0];
+                let scale = costs.iter().fold(0.0f64, |a, &b| a.max(b));
+                for (t, &ct) in costs.iter().enumerate() {
+                    assert!((d(t) - ct - offset).abs() <= 1e-11 * scale, "query {i}, reference {t}");
+                }
+            }
+            // The map: the cost's argmin (no near ties among these random rows).
+            let map = bijective_map(phi.as_ref(), psi.as_ref(), c.as_ref(), c_xy.as_ref(), w, Some(&rows), Some(&refs))
+                .unwrap();
+            for (s, &i) in rows.iter().enumerate() {
+                let best = refs
+                    .iter()
+                    .copied()
+                    .min_by(|&a, &b| {
+                        let ca = cost(phi.as_ref(), psi.as_ref(), c.as_ref(), c_xy.as_ref(), w, i, a);
+                        ca.total_cmp(&cost(phi.as_ref(), psi.as_ref(), c.as_ref(), c_xy.as_ref(), w, i, b))
+                    })
+                    .unwrap();
+                assert_eq!(map[s], best, "query {i}");
+            }
+        }
+    }
 }
