@@ -20,6 +20,7 @@
 //! ```
 
 pub mod benchmark;
+pub mod cell_quadrature;
 pub(crate) mod cholesky;
 pub mod cloud;
 pub mod completion;

@@ -263,6 +263,45 @@ crate::linalg::at_vector_width! {
     fn rotated_gradient_products(v: [&[f64]; 3], g: [MatRef<'_, f64>; 3], w: MatMut<'_, f64>) = rotated_gradient_products_generic
 }
 
+/// n_F × ∇f_p on `face` (f n × q, p a column), divided by its length with `unit_gradients`
+/// (zero where that length is at most 1e-12 × `top`, the descriptor's largest).
+pub(crate) fn rotated_unit_gradient(
+    grads: &FaceGradients,
+    f: MatRef<f64>,
+    p: usize,
+    face: usize,
+    unit_gradients: bool,
+    top: f64,
+) -> [f64; 3] {
+    let x = cross(grads.normals[face], grads.face_gradient(face, |i| f[(i, p)]));
+    if !unit_gradients {
+        return x;
+    }
+    let l = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+    if l > 1e-12 * top {
+        [x[0] / l, x[1] / l, x[2] / l]
+    } else {
+        [0.0; 3]
+    }
+}
+
+/// The largest |n_F × ∇f_p| over the faces of every column of f (n × q), for the unit
+/// gradients' zero test of [`rotated_unit_gradient`] (zeros without `unit_gradients`).
+pub(crate) fn largest_rotated_gradients(grads: &FaceGradients, f: MatRef<f64>, unit_gradients: bool) -> Vec<f64> {
+    if !unit_gradients {
+        return vec![0.0; f.ncols()];
+    }
+    (0..f.ncols())
+        .into_par_iter()
+        .map(|p| {
+            (0..grads.n_faces()).fold(0.0f64, |m, face| {
+                let v = rotated_unit_gradient(grads, f, p, face, false, 0.0);
+                m.max((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+            })
+        })
+        .collect()
+}
+
 /// Orientation operators `O_p` (k × k each, see the module docs) of the q columns of F (n × q)
 /// in the basis Φ (n × k): `(O_p)_ab = Σ_F w_F mean_F(φ_a) ⟨n_F × ∇f_p, ∇φ_b⟩`. With
 /// `unit_gradients`, ∇f_p is replaced by ∇f_p / |∇f_p| on every face (as in the BCICP code of
@@ -285,23 +324,7 @@ pub fn orientation_operators(
     let g = grads.basis_gradients(phi)?;
     let means = grads.weighted_face_means(phi)?;
     let (nf, k, q) = (grads.n_faces(), phi.ncols(), f.ncols());
-    // n_F × ∇f_p on face F.
-    let rotated =
-        |face: usize, p: usize| -> [f64; 3] { cross(grads.normals[face], grads.face_gradient(face, |i| f[(i, p)])) };
-    // The largest |∇f_p| of every descriptor (for the unit gradients' zero test).
-    let top: Vec<f64> = if unit_gradients {
-        (0..q)
-            .into_par_iter()
-            .map(|p| {
-                (0..nf).fold(0.0f64, |m, face| {
-                    let v = rotated(face, p);
-                    m.max((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
-                })
-            })
-            .collect()
-    } else {
-        vec![0.0; q]
-    };
+    let top = largest_rotated_gradients(grads, f, unit_gradients);
     let per_group = nf.div_ceil(FACE_GROUPS.min(nf.div_ceil(FACE_BLOCK))).max(1);
     let partials: Vec<Vec<Mat<f64>>> = (0..nf.div_ceil(per_group))
         .into_par_iter()
@@ -317,11 +340,7 @@ pub fn orientation_operators(
                 let gb: [MatRef<f64>; 3] = std::array::from_fn(|c| g[c].as_ref().subrows(b0, len));
                 for (p, op) in ops.iter_mut().enumerate() {
                     for t in 0..len {
-                        let mut x = rotated(b0 + t, p);
-                        if unit_gradients {
-                            let l = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
-                            x = if l > 1e-12 * top[p] { [x[0] / l, x[1] / l, x[2] / l] } else { [0.0; 3] };
-                        }
+                        let x = rotated_unit_gradient(grads, f, p, b0 + t, unit_gradients, top[p]);
                         (v[0][t], v[1][t], v[2][t]) = (x[0], x[1], x[2]);
                     }
                     let vb = [&v[0][..len], &v[1][..len], &v[2][..len]];

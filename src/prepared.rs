@@ -69,6 +69,11 @@ pub enum Surface {
     Denoised(TriMesh, Denoising),
 }
 
+/// Cells of [`PreparedShape::quadrature_cells`]: surfaces of more than twice as many vertices
+/// integrate the fits' operators over this many cells ([`crate::cell_quadrature`]; 17 vertices
+/// per cell at 840k), smaller ones exactly (every shape up to 10⁵ vertices is unchanged).
+pub const QUADRATURE_CELLS: usize = 50_000;
+
 /// A shape with its Laplacian, its eigenbasis and (on demand) its surface geometry, scaled to
 /// unit area (module docs, "Units").
 #[derive(Debug)]
@@ -87,6 +92,7 @@ pub struct PreparedShape {
     unit_mesh: Option<TriMesh>,
     gradients: OnceLock<Option<FaceGradients>>,
     normals: OnceLock<Option<Vec<[f64; 3]>>>,
+    cells: OnceLock<Option<Vec<u32>>>,
 }
 
 impl PreparedShape {
@@ -149,6 +155,7 @@ impl PreparedShape {
             unit_mesh,
             gradients: OnceLock::new(),
             normals: OnceLock::new(),
+            cells: OnceLock::new(),
         }
     }
 
@@ -207,6 +214,30 @@ impl PreparedShape {
                 self.triangles().and_then(|t| FaceGradients::weighted(t, w).ok())
             })
             .as_ref()
+    }
+
+    /// Quadrature cells of the vertices (length n; computed on first use) for surfaces of more
+    /// than 2 × [`QUADRATURE_CELLS`] vertices, None below: the geodesic Voronoi cells (along the
+    /// edges of [`Self::triangles`]) of about [`QUADRATURE_CELLS`] well-spread vertices
+    /// ([`crate::spatial::grid_samples`]); a vertex no cell reaches (a small component without
+    /// a sample) is a cell of its own. The fits' operators are integrated over them
+    /// ([`crate::cell_quadrature`]).
+    pub fn quadrature_cells(&self) -> Option<&[u32]> {
+        self.cells
+            .get_or_init(|| {
+                let t = self.triangles()?;
+                if t.n_vertices() <= 2 * QUADRATURE_CELLS {
+                    return None;
+                }
+                let graph = crate::geodesic::GraphGeodesics::mesh_edges(t).ok()?;
+                let seeds = crate::spatial::grid_samples(t.vertices(), QUADRATURE_CELLS);
+                let (_, mut labels) = graph.nearest_sources(&seeds).ok()?;
+                for (next, l) in (seeds.len() as u32..).zip(labels.iter_mut().filter(|l| **l == u32::MAX)) {
+                    *l = next;
+                }
+                Some(labels)
+            })
+            .as_deref()
     }
 
     /// Outward unit vertex normals (computed on first use): area-weighted for meshes, the

@@ -58,6 +58,9 @@ pub struct ShapeData<'a> {
     pub gradients: Option<&'a FaceGradients>,
     /// Descriptors (n × q).
     pub descriptors: &'a Descriptors,
+    /// Quadrature cells of the vertices (length n), for large meshes: the operators are then
+    /// computed by [`crate::cell_quadrature`] (None: exactly).
+    pub cells: Option<&'a [u32]>,
 }
 
 /// Builds one side of the energy in the first k eigenpairs: coefficients Φ_kᵀ A F and the
@@ -92,7 +95,13 @@ pub fn spectral_side(
         1.0,
         faer::Par::Seq,
     );
-    let mult = if multiplication { multiplication_operators(phi, &b.mass, f.as_ref())? } else { vec![] };
+    let mult = match (multiplication, s.cells) {
+        (false, _) => vec![],
+        (true, None) => multiplication_operators(phi, &b.mass, f.as_ref())?,
+        (true, Some(cells)) => {
+            crate::cell_quadrature::multiplication_operators_on_cells(phi, &b.mass, f.as_ref(), cells)?
+        }
+    };
     let orient = if orientation {
         let g = s.gradients.ok_or_else(|| {
             Error::invalid(
@@ -100,7 +109,12 @@ pub fn spectral_side(
                 format!("the orientation term needs the faces of {side} (a mesh or a point-cloud triangulation)"),
             )
         })?;
-        orientation_operators(g, phi, f.as_ref(), unit_gradients)?
+        match s.cells {
+            None => orientation_operators(g, phi, f.as_ref(), unit_gradients)?,
+            Some(cells) => {
+                crate::cell_quadrature::orientation_operators_on_cells(g, phi, f.as_ref(), unit_gradients, cells)?
+            }
+        }
     } else {
         vec![]
     };
@@ -198,7 +212,8 @@ fn fit_sizes(
     // The two sides side by side (their face gradients and means are sequential), unless
     // holding both sides' n_f × k face matrices at once (four per side) would take more than
     // SIDES_TOGETHER_BYTES: large meshes build one side after the other.
-    let faces = |s: &ShapeData| s.gradients.map_or(0, |g| g.n_faces());
+    // (Sides with quadrature cells hold no face matrix: `crate::cell_quadrature`.)
+    let faces = |s: &ShapeData| if s.cells.is_some() { 0 } else { s.gradients.map_or(0, |g| g.n_faces()) };
     let together = orient && 4 * 8 * k * (faces(x) + faces(y)) <= SIDES_TOGETHER_BYTES;
     let (sx, sy) = if together || !orient {
         rayon::join(
@@ -246,8 +261,8 @@ mod tests {
             crate::descriptors::signatures::wks(&basis_y, 6, true).unwrap(),
         );
         let (gx, gy) = (FaceGradients::new(&mesh).unwrap(), FaceGradients::new(&moved).unwrap());
-        let x = ShapeData { basis: &basis, gradients: Some(&gx), descriptors: &dx };
-        let y = ShapeData { basis: &basis_y, gradients: Some(&gy), descriptors: &dy };
+        let x = ShapeData { basis: &basis, gradients: Some(&gx), descriptors: &dx, cells: None };
+        let y = ShapeData { basis: &basis_y, gradients: Some(&gy), descriptors: &dy, cells: None };
         let opts = AxiomaticOptions::default();
         let all = axiomatic_sizes(&x, &y, &opts, &[5, 12, 8]).unwrap();
         for ((c, report), k) in all.iter().zip([5, 12, 8]) {

@@ -344,8 +344,8 @@ pub fn axiomatic_pipeline(
     };
     let pins = lm.as_ref().map_or_else(Vec::new, LandmarkData::pins);
     let lm_x: Vec<usize> = pins.iter().map(|&(i, _)| i).collect();
-    let dx = ShapeData { basis: &x.basis, gradients: x.gradients(), descriptors: &fx };
-    let dy = ShapeData { basis: &y.basis, gradients: y.gradients(), descriptors: &gy };
+    let dx = ShapeData { basis: &x.basis, gradients: x.gradients(), descriptors: &fx, cells: x.quadrature_cells() };
+    let dy = ShapeData { basis: &y.basis, gradients: y.gradients(), descriptors: &gy, cells: y.quadrature_cells() };
     stages.push(("descriptors".to_string(), t.elapsed().as_secs_f64()));
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
     // Candidates: the pull-backs of the fits.
@@ -869,7 +869,7 @@ pub(super) mod tests {
         let p = AxiomaticPipeline::default();
         let (fx, gy) = pipeline_data(&x, &y, &f, &g, &p).unwrap();
         let sx = spectral_side(
-            &ShapeData { basis: &x.basis, gradients: x.gradients(), descriptors: &fx },
+            &ShapeData { basis: &x.basis, gradients: x.gradients(), descriptors: &fx, cells: None },
             20,
             false,
             true,
@@ -878,7 +878,7 @@ pub(super) mod tests {
         )
         .unwrap();
         let sy = spectral_side(
-            &ShapeData { basis: &y.basis, gradients: y.gradients(), descriptors: &gy },
+            &ShapeData { basis: &y.basis, gradients: y.gradients(), descriptors: &gy, cells: None },
             20,
             false,
             true,

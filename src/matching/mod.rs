@@ -423,8 +423,8 @@ fn completion_prior(
         Some((gx, gy)) => (Some(gx), Some(gy)),
         None => (None, None),
     };
-    let sx = ShapeData { basis: bx, gradients: gx, descriptors: f };
-    let sy = ShapeData { basis: by, gradients: gy, descriptors: g };
+    let sx = ShapeData { basis: bx, gradients: gx, descriptors: f, cells: None };
+    let sy = ShapeData { basis: by, gradients: gy, descriptors: g, cells: None };
     let side_x = spectral_side(&sx, kc, w.commutativity > 0.0, orient, fit.unit_gradients, "X")?;
     let side_y = spectral_side(&sy, kc, w.commutativity > 0.0, orient, fit.unit_gradients, "Y")?;
     Ok(Some(Energy::new(&side_x, &side_y, &w, fit.mask, fit.orientation)?))

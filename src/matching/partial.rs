@@ -748,8 +748,8 @@ fn pass(
     let w = &p.fit.weights;
     let orient = w.orientation > 0.0 && p.fit.orientation != Orientation::Ignore;
     let comm = w.commutativity > 0.0;
-    let dx = ShapeData { basis: &x.basis, gradients: x.gradients(), descriptors: &fx };
-    let dy = ShapeData { basis: &y.basis, gradients: y.gradients(), descriptors: &gy };
+    let dx = ShapeData { basis: &x.basis, gradients: x.gradients(), descriptors: &fx, cells: x.quadrature_cells() };
+    let dy = ShapeData { basis: &y.basis, gradients: y.gradients(), descriptors: &gy, cells: y.quadrature_cells() };
     let ky_max = p.candidates.iter().copied().max().unwrap_or(1).min(y.basis.k());
     let side_y = spectral_side(&dy, ky_max, comm, orient, p.fit.unit_gradients, "Y")?;
     let mut side_x = spectral_side(&dx, slope.kx(ky_max), comm, orient, p.fit.unit_gradients, "X")?;
@@ -1024,10 +1024,10 @@ mod tests {
         .unwrap();
         let (g, g_small) = (FaceGradients::new(&unit).unwrap(), FaceGradients::new(&small).unwrap());
         for unit_gradients in [true, false] {
-            let data = ShapeData { basis: &b, gradients: Some(&g), descriptors: &f };
+            let data = ShapeData { basis: &b, gradients: Some(&g), descriptors: &f, cells: None };
             let mut side = spectral_side(&data, 12, true, true, unit_gradients, "X").unwrap();
             in_units_of_y(&mut side, r, unit_gradients);
-            let data_small = ShapeData { basis: &b_small, gradients: Some(&g_small), descriptors: &f };
+            let data_small = ShapeData { basis: &b_small, gradients: Some(&g_small), descriptors: &f, cells: None };
             let truth = spectral_side(&data_small, 12, true, true, unit_gradients, "X").unwrap();
             let close = |a: &Mat<f64>, b: &Mat<f64>| (a - b).norm_l2() <= 1e-9 * b.norm_l2().max(1e-300);
             for (a, b) in side.eigenvalues.iter().zip(&truth.eigenvalues) {
