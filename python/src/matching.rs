@@ -529,8 +529,8 @@ fn axiomatic_fmap<'py>(
         let names: Vec<String> = (0..f.ncols()).map(|j| format!("column {j}")).collect();
         let (df, dg) = (Descriptors::new(f, names.clone())?, Descriptors::new(g, names)?);
         let (gx, gy) = if orient { (px.gradients(), py_.gradients()) } else { (None, None) };
-        let sx = ShapeData { basis: &px.basis, gradients: gx, descriptors: &df };
-        let sy = ShapeData { basis: &py_.basis, gradients: gy, descriptors: &dg };
+        let sx = ShapeData { basis: &px.basis, gradients: gx, descriptors: &df, cells: None };
+        let sy = ShapeData { basis: &py_.basis, gradients: gy, descriptors: &dg, cells: None };
         let (c, energy) = if kx == ky {
             let opts = AxiomaticOptions { k: kx, weights, mask, orientation, fix_constant, unit_gradients: true };
             let (c, report) = axiomatic(&sx, &sy, &opts)?;
