@@ -20,6 +20,7 @@ const LAYERS: &[(&str, f64)] = &[
     ("laplacian", 3.0),
     ("geodesic", 3.1),
     ("operators", 3.1),
+    ("cell_quadrature", 3.15),
     ("cloud", 3.2),
     ("denoise", 3.3),
     ("spectral", 4.0),
