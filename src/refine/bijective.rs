@@ -170,8 +170,7 @@ fn bijective_map_near(
     let (all_x, all_y): (Vec<usize>, Vec<usize>) = ((0..phi.nrows()).collect(), (0..psi.nrows()).collect());
     let (reference, query) = bijective_embeddings(phi, psi, c_yx, c_xy, w, &all_x, &all_y);
     let images = sample_images_near(reference.as_ref(), query.as_ref(), sx, y_cells, near)?;
-    let all: Vec<usize> = (0..phi.nrows()).collect();
-    rows_near(reference.as_ref(), query.as_ref(), near, (sx, &images, y_cells), &all)
+    rows_near(reference.as_ref(), query.as_ref(), near, (sx, &images, y_cells), &all_x)
 }
 
 /// Pins ([`bijective_polish_pinned`]) as positions in the samples of both shapes: (position in
