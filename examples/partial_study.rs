@@ -14,6 +14,7 @@
 //! rectangular maps (default 1); `SEEDED=n` the sample maps from distances alone probed (default
 //! 0: none); `SCALE=area|distances` the area ratio as it is or estimated from distance-only maps
 //! (default: from the heat kernels, `PartialScale::Heat`);
+//! `KBASIS=k` the eigenpairs per shape (default 200);
 //! `CLOUD=x` the parts as point clouds of their vertices. `UNITS=1` every shape in its own unit
 //! (×10^u, u ∈ [−3, 3] from a hash of its name). `STRIDE=s` every s-th pair of the range. `DETECT=1`: no matching, the detection of every shape of the
 //! pairs against the pair's other shape (for whole data sets: none should be detected).
@@ -94,8 +95,9 @@ fn main() -> Result<()> {
         opts.partial.seeded = s.parse().expect("SEEDED");
     }
     let detect_only = std::env::var("DETECT").is_ok();
-    // The bases of `funcorr match` (the detection's heat kernels need them as the pipeline has them).
-    let k = 200;
+    // The bases of `funcorr match` (the detection's heat kernels need them as the pipeline has
+    // them); `KBASIS` sets another size.
+    let k: usize = std::env::var("KBASIS").map(|s| s.parse().expect("KBASIS")).unwrap_or(200);
     let cache = BasisCache::default_dir().map(BasisCache::new);
     let mut names: Vec<String> = pairs.iter().flat_map(|(x, y)| [x.clone(), y.clone()]).collect();
     names.sort();

@@ -74,6 +74,18 @@ pub enum Surface {
 /// per cell at 840k), smaller ones exactly (every shape up to 10⁵ vertices is unchanged).
 pub const QUADRATURE_CELLS: usize = 50_000;
 
+/// The area of a shape from its Laplacian's vertex weights A (Σ A: units² for meshes and
+/// clouds), as [`PreparedShape::area`] takes it: 1 when the sum is not finite and positive (the
+/// Laplacian and the eigensolver reject such weights).
+pub fn area_of_mass(mass: &[f64]) -> f64 {
+    let total: f64 = mass.iter().sum();
+    if total.is_finite() && total > 0.0 {
+        total
+    } else {
+        1.0
+    }
+}
+
 /// A shape with its Laplacian, its eigenbasis and (on demand) its surface geometry, scaled to
 /// unit area (module docs, "Units").
 #[derive(Debug)]

@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use funcorr::descriptors::signatures::{wks_recipe, WksRecipe};
-use funcorr::matching::partial::{detect, pair_wks, PartialMode, PartialOptions};
+use funcorr::matching::partial::{detect, may_be_partial, pair_wks, PartialMode, PartialOptions};
 use funcorr::matching::{run, MatchOptions};
 use funcorr::prepared::{LaplacianChoice, PreparedShape};
 use funcorr::shape::{Shape, TriMesh};
@@ -94,6 +94,9 @@ fn cut_copy_match(
     opts.partial.wks = Some(WksRecipe::default());
     let det = detect(&x, &y, &opts.partial);
     assert!(det.partial, "{det:?}");
+    // Known before the bases: the pair may be partial (so `funcorr match` computes 200
+    // eigenpairs per shape).
+    assert!(may_be_partial(&x.shape, x.area, &y.shape, y.area, &opts.partial));
     assert!(det.area_ratio < 0.9 && det.boundary_x.unwrap() > 0.25 && det.boundary_y == Some(0.0), "{det:?}");
     let (f, g) = pair_wks(&x, &y, &WksRecipe::default()).unwrap();
     let r = run(&x, &y, &f, &g, &opts).unwrap();
@@ -158,10 +161,13 @@ fn whole_shapes_are_not_taken_for_parts() {
     for (a, b) in [(&x, &y), (&y, &x), (&x, &x)] {
         let d = detect(a, b, &auto);
         assert!(!d.partial && d.boundary_x == Some(0.0), "{d:?}");
+        // Known before the bases (so `funcorr match` computes 128 eigenpairs per shape).
+        assert!(!may_be_partial(&a.shape, a.area, &b.shape, b.area, &auto));
     }
     // --partial forces the path, and the other methods refuse it.
     let always = PartialOptions { mode: PartialMode::Always, ..auto };
     assert!(detect(&x, &y, &always).partial);
+    assert!(may_be_partial(&x.shape, x.area, &y.shape, y.area, &always));
     let (f, g) =
         (wks_recipe(&x.basis, &WksRecipe::default()).unwrap(), wks_recipe(&y.basis, &WksRecipe::default()).unwrap());
     let mut opts = MatchOptions::for_method(funcorr::matching::Method::Fmap, true);

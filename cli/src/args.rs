@@ -298,8 +298,9 @@ pub(crate) struct PipelineArgs {
     /// for rich data: wks, hks, rich, matrix).
     #[arg(short)]
     pub(crate) k: Option<usize>,
-    /// Eigenpairs per shape k': the basis size of the baselines (default 200) or the subspace
-    /// size of the completion method (default 350 for scarce data, 50 for rich data).
+    /// Eigenpairs per shape k': the basis size of the baselines and the axiomatic method
+    /// (default 200; 128 for the axiomatic method where X cannot be a part) or the subspace size
+    /// of the completion method (default 350 for scarce data, 50 for rich data).
     #[arg(long)]
     pub(crate) kprime: Option<usize>,
     /// Weight μ_c of the Laplacian-commutativity term of eq. (5) relative to its normalized data

@@ -9,7 +9,7 @@ use funcorr::{Error, Result};
 use crate::args::{
     CacheArgs, LaplacianArgs, MethodChoice, PipelineArgs, SegmentationArgs, DEFAULT_DATA, DEFAULT_SIZE, DEFAULT_VIEW,
 };
-use crate::options::{pair_data, prepared_shape, settings, Flags};
+use crate::options::{pair_data, settings, Flags, ShapeLaplacian};
 use crate::output::{describe, mesh_data, parse_size, write_colour_transfer, write_map_files};
 use crate::Stages;
 
@@ -105,17 +105,20 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     }
     let view = funcorr::viz::View::parse(&args.view)?;
     let size = parse_size(&args.size)?;
-    let demand = settings.basis_demand(&opts, &Flags)?;
-    let basis_k = demand.size;
+    // Options that ask for too few eigenpairs fail before any work.
+    settings.basis_demand(&opts, &Flags)?;
+    let least = settings.basis_demand_for(&opts, &Flags, false)?;
     // The output directory is created (and checked writable) before any work; it is published at
     // the end, or removed when the run fails.
     let staged = funcorr::io::staged::StagedDir::create(&args.output)?;
     let x = st.run("read", || Shape::load(&args.x))?;
     let y = st.run("read", || Shape::load(&args.y))?;
+    // Shapes too small for the fewest eigenpairs the options may ask (the check below, with the
+    // eigenpairs this pair needs, comes after the Laplacians).
     for (path, shape) in [(&args.x, &x), (&args.y, &y)] {
-        if basis_k >= shape.n_vertices() {
+        if least.size >= shape.n_vertices() {
             let name = funcorr::error::escape_path(path);
-            return Err(settings.too_small(&name, shape.n_vertices(), &opts, &demand, &Flags));
+            return Err(settings.too_small(&name, shape.n_vertices(), &opts, &least, &Flags));
         }
     }
     if let Some(path) = &args.landmarks {
@@ -127,10 +130,24 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     }
     // The two shapes' Laplacians and bases are independent: prepared side by side.
     let (mut stx, mut sty) = (Stages { quiet: args.quiet, parts: vec![] }, Stages { quiet: args.quiet, parts: vec![] });
-    let (px, py) = rayon::join(
-        || prepared_shape(x, &args.x, &args.lap, &args.cache, basis_k, &mut stx),
-        || prepared_shape(y, &args.y, &args.lap, &args.cache, basis_k, &mut sty),
+    let (lx, ly) = rayon::join(
+        || ShapeLaplacian::new(x, &args.x, &args.lap, &mut stx),
+        || ShapeLaplacian::new(y, &args.y, &args.lap, &mut sty),
     );
+    let (lx, ly) = (lx?, ly?);
+    // The eigenpairs per shape: fewer where X cannot be a part (the partial path reads them all).
+    let area = |l: &ShapeLaplacian| funcorr::prepared::area_of_mass(&l.laplacian.mass);
+    let partial = funcorr::matching::partial::may_be_partial(&lx.shape, area(&lx), &ly.shape, area(&ly), &opts.partial);
+    let demand = settings.basis_demand_for(&opts, &Flags, partial)?;
+    let basis_k = demand.size;
+    for (path, shape) in [(&args.x, &lx.shape), (&args.y, &ly.shape)] {
+        if basis_k >= shape.n_vertices() {
+            let name = funcorr::error::escape_path(path);
+            return Err(settings.too_small(&name, shape.n_vertices(), &opts, &demand, &Flags));
+        }
+    }
+    let (px, py) =
+        rayon::join(|| lx.prepared(&args.cache, basis_k, &mut stx), || ly.prepared(&args.cache, basis_k, &mut sty));
     let (px, py) = (px?, py?);
     for (path, p) in [(&args.x, &px), (&args.y, &py)] {
         warn_components(path, p);

@@ -59,23 +59,30 @@ pub(crate) fn shape_basis(
     Ok((lap, basis))
 }
 
-/// A shape prepared for matching: its Laplacian (and surface: the mesh or the point cloud's
-/// triangulation), and its basis through the cache.
-pub(crate) fn prepared_shape(
-    shape: Shape,
-    path: &Path,
-    lap_args: &LaplacianArgs,
-    cache: &CacheArgs,
-    k: usize,
-    st: &mut Stages,
-) -> Result<funcorr::PreparedShape> {
-    let choice = laplacian_choice(lap_args, &shape, path)?;
-    let (lap, surface) =
-        st.run("laplacian", || funcorr::prepared::build_laplacian(&shape, choice).map_err(laplacian_error(path)))?;
-    let c = cache.cache();
-    let basis =
-        st.run("eigenbasis", || spectral::eigen_basis_cached(&lap, &SpectralOptions::new(k), c.as_ref(), None))?.0;
-    Ok(funcorr::PreparedShape::from_parts(shape, lap, basis, surface))
+/// A shape on its way to matching: its Laplacian and surface (the mesh or the point cloud's
+/// triangulation), before its basis ([`ShapeLaplacian::prepared`]).
+pub(crate) struct ShapeLaplacian {
+    pub(crate) shape: Shape,
+    pub(crate) laplacian: Laplacian,
+    surface: Option<funcorr::prepared::Surface>,
+}
+
+impl ShapeLaplacian {
+    /// The Laplacian of `shape` (read from `path`) as the arguments choose it.
+    pub(crate) fn new(shape: Shape, path: &Path, lap_args: &LaplacianArgs, st: &mut Stages) -> Result<Self> {
+        let choice = laplacian_choice(lap_args, &shape, path)?;
+        let (laplacian, surface) =
+            st.run("laplacian", || funcorr::prepared::build_laplacian(&shape, choice).map_err(laplacian_error(path)))?;
+        Ok(ShapeLaplacian { shape, laplacian, surface })
+    }
+
+    /// The shape prepared for matching: its first `k` eigenpairs through the cache.
+    pub(crate) fn prepared(self, cache: &CacheArgs, k: usize, st: &mut Stages) -> Result<funcorr::PreparedShape> {
+        let c = cache.cache();
+        let opts = SpectralOptions::new(k);
+        let basis = st.run("eigenbasis", || spectral::eigen_basis_cached(&self.laplacian, &opts, c.as_ref(), None))?.0;
+        Ok(funcorr::PreparedShape::from_parts(self.shape, self.laplacian, basis, self.surface))
+    }
 }
 
 /// The library's Laplacian choice for the CLI's arguments and this shape (read from `path`).

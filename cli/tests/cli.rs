@@ -709,6 +709,9 @@ fn default_match_is_accurate_on_the_bundled_pair() {
     assert!(direct < 2.0, "default pipeline: direct mean error ×100 = {direct:.3}");
     let rep = report(&out);
     assert_eq!(rep["options"]["method"], "axiomatic");
+    // X is closed, so it cannot be a part: 128 eigenpairs per shape (the default WKS's), not
+    // the 200 of the partial path.
+    assert_eq!(rep["basis_size"], 128);
     // The four candidate fits, then at most one corrected candidate per form of the basin
     // search's correction, each naming the candidate it was corrected from.
     let cands = rep["candidates"]["candidates"].as_array().unwrap();
@@ -1371,7 +1374,7 @@ fn hostile_inputs_of_issue_15_get_errors_naming_the_option_or_file() {
     let small = write_off(&d, "torus120.off", torus, faces);
     let ss = small.to_str().unwrap();
     let r = run(&["match", ss, ss, "-o", os, "--no-cache"]);
-    assert_fails(&r, "--kprime (default 200)");
+    assert_fails(&r, "--kprime (default 128 for a whole X)");
     assert!(text(&r.stderr).contains("torus120.off"), "{}", text(&r.stderr));
     let r = run(&["match", ss, ss, "-o", os, "--no-cache", "--method", "completion"]);
     assert_fails(&r, "--zoomout-to (default 150)");

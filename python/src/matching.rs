@@ -84,8 +84,8 @@ fn match_shapes<'py>(
     let mut o = options::Opts::new(options)?;
     let settings = options::match_settings(&mut o)?;
     let opts = settings.resolve(rich).map_err(options::library_error)?;
-    let demand = settings.basis_demand(&opts, &Keywords).map_err(options::library_error)?;
-    let basis_k = demand.size;
+    // Options that ask for too few eigenpairs fail before the shapes are read.
+    settings.basis_demand(&opts, &Keywords).map_err(options::library_error)?;
     let preparation_keys = ["laplacian", "cloud_neighbours", "knn", "vertex_weights", "sigma", "cache_dir"];
     let given: Vec<&str> = preparation_keys.iter().copied().filter(|k| o.has(k)).collect();
     let choice = laplacian_choice(&mut o)?;
@@ -94,6 +94,9 @@ fn match_shapes<'py>(
     let landmarks = o.take("landmarks").filter(|v| !v.is_none());
     o.finish()?;
     let (sx, sy) = (side(x, "X")?, side(y, "Y")?);
+    // The fewest eigenpairs per shape the options may ask (the eigenpairs of this pair are known
+    // after the Laplacians: fewer where X cannot be a part, whose partial path reads them all).
+    let least = settings.basis_demand_for(&opts, &Keywords, false).map_err(options::library_error)?;
     if let (Some(key), true) = (given.first(), matches!(sx, Side::Ready(_)) && matches!(sy, Side::Ready(_))) {
         return Err(value_error(
             key,
@@ -102,8 +105,8 @@ fn match_shapes<'py>(
     }
     for (s, name) in [(&sx, "X"), (&sy, "Y")] {
         if let Side::Raw(shape) = s {
-            if basis_k >= shape.n_vertices() {
-                let e = settings.too_small(name, shape.n_vertices(), &opts, &demand, &Keywords);
+            if least.size >= shape.n_vertices() {
+                let e = settings.too_small(name, shape.n_vertices(), &opts, &least, &Keywords);
                 return Err(options::library_error(e));
             }
         }
@@ -140,14 +143,46 @@ fn match_shapes<'py>(
         }
     }
     let mut opts_run = opts.clone();
-    let (px, py_, f, g, r) = crate::compute_reporting(py, progress, move || {
-        let prep = |s: Side| -> funcorr::Result<Arc<PreparedShape>> {
+    let (px, py_, f, g, r, basis_k) = crate::compute_reporting(py, progress, move || {
+        // As `funcorr match`: the Laplacians, the eigenpairs this pair needs, the bases as
+        // computed (or cached), not truncated.
+        enum Laplacianed {
+            Ready(Arc<PreparedShape>),
+            Raw(Shape, funcorr::laplacian::Laplacian, Option<funcorr::prepared::Surface>),
+        }
+        let laplacian = |s: Side| -> funcorr::Result<Laplacianed> {
             match s {
-                Side::Ready(p) => Ok(p),
+                Side::Ready(p) => Ok(Laplacianed::Ready(p)),
                 Side::Raw(shape) => {
-                    // As `funcorr match`: the basis as computed (or cached), not truncated.
                     funcorr::progress::stage("laplacian")?;
                     let (lap, surface) = funcorr::prepared::build_laplacian(&shape, choice)?;
+                    Ok(Laplacianed::Raw(shape, lap, surface))
+                }
+            }
+        };
+        let (lx, ly) = rayon::join(|| laplacian(sx), || laplacian(sy));
+        let (lx, ly) = (lx?, ly?);
+        fn shape_area(l: &Laplacianed) -> (&Shape, f64) {
+            match l {
+                Laplacianed::Ready(p) => (&p.shape, p.area),
+                Laplacianed::Raw(shape, lap, _) => (shape, funcorr::prepared::area_of_mass(&lap.mass)),
+            }
+        }
+        let ((shx, ax), (shy, ay)) = (shape_area(&lx), shape_area(&ly));
+        let partial = funcorr::matching::partial::may_be_partial(shx, ax, shy, ay, &opts_run.partial);
+        let demand = settings.basis_demand_for(&opts_run, &Keywords, partial)?;
+        let basis_k = demand.size;
+        for (l, name) in [(&lx, "X"), (&ly, "Y")] {
+            if let Laplacianed::Raw(shape, ..) = l {
+                if basis_k >= shape.n_vertices() {
+                    return Err(settings.too_small(name, shape.n_vertices(), &opts_run, &demand, &Keywords));
+                }
+            }
+        }
+        let prep = |l: Laplacianed| -> funcorr::Result<Arc<PreparedShape>> {
+            match l {
+                Laplacianed::Ready(p) => Ok(p),
+                Laplacianed::Raw(shape, lap, surface) => {
                     funcorr::progress::stage("eigenbasis")?;
                     let (basis, _) = funcorr::spectral::eigen_basis_cached(
                         &lap,
@@ -159,7 +194,7 @@ fn match_shapes<'py>(
                 }
             }
         };
-        let (px, py_) = rayon::join(|| prep(sx), || prep(sy));
+        let (px, py_) = rayon::join(|| prep(lx), || prep(ly));
         let (px, py_) = (px?, py_?);
         funcorr::progress::stage("data")?;
         // As `funcorr match`: a part of Y (detected or partial=True) with the default WKS gets
@@ -172,7 +207,7 @@ fn match_shapes<'py>(
             Data::Given(f, g) => (f, g),
         };
         let r = funcorr::matching::run(&px, &py_, &f, &g, &opts_run)?;
-        Ok((px, py_, f, g, r))
+        Ok((px, py_, f, g, r, basis_k))
     })?;
     let out = PyDict::new(py);
     out.set_item("map_xy", arrays::index_out(py, &r.map_xy))?;
@@ -239,8 +274,10 @@ fn check_surface(s: &Side, choice: funcorr::prepared::LaplacianChoice, name: &st
 }
 
 /// The eigenpairs per shape `match` computes for these data and options (`funcorr match`'s
-/// rule: what the method and its refinement need, at least 200 unless `kprime` says otherwise),
-/// so that shapes prepared with it give exactly the maps of raw shapes.
+/// rule for any pair: what the method and its refinement need, at least 200 unless `kprime` says
+/// otherwise; `match` itself computes 128 for the axiomatic method where X cannot be a part, and
+/// a larger basis gives the same maps there), so that shapes prepared with it give exactly the
+/// maps of raw shapes.
 #[pyfunction]
 #[pyo3(signature = (data, options=None))]
 fn match_basis_size(data: &Bound<'_, PyAny>, options: Option<&Bound<'_, PyDict>>) -> PyResult<usize> {

@@ -46,6 +46,8 @@ def test_a_cut_copy_is_matched_to_its_whole_with_coverage():
     assert 2000 < len(Vp) < 4500
     r = funcorr.match((Vp, Fp), (V, F))
     assert r.report["partial"]["partial"], r.report["partial"]
+    # An open X may be a part: 200 eigenpairs per shape (the partial path reads them all).
+    assert r.report["basis_size"] == 200
     assert r.map_xy.shape == (len(Vp),)
     # Every vertex near itself (tests/partial.rs measured a median of 1.0 mean edge lengths).
     edges = np.concatenate([Fp[:, [0, 1]], Fp[:, [1, 2]], Fp[:, [2, 0]]])
@@ -68,5 +70,7 @@ def test_partial_false_matches_whole_shapes_and_other_methods_refuse_partial():
     whole = funcorr.match((Vp, Fp), (V, F), partial=False)
     assert whole.coverage is None
     assert not whole.report["partial"]["partial"]
+    # partial=False: X is matched whole, with the 128 eigenpairs per shape that path reads.
+    assert whole.report["basis_size"] == 128
     with pytest.raises(ValueError, match="partial"):
         funcorr.match((Vp, Fp), (V, F), method="fmap", partial=True)

@@ -116,9 +116,20 @@ pub struct MatchOptions {
     pub partial: partial::PartialOptions,
 }
 
-/// Eigenpairs per shape that `funcorr match` computes for the methods other than completion
-/// when the options need fewer (`--kprime` default).
+/// Eigenpairs per shape that `funcorr match` computes for the baselines (the methods other than
+/// completion and axiomatic) when the options need fewer (`--kprime` default).
 pub const DEFAULT_BASIS_SIZE: usize = 200;
+
+/// Eigenpairs per shape that `funcorr match` computes for the axiomatic method when X cannot be
+/// a part and its sizes need fewer (`--kprime` default,
+/// [`options::MatchSettings::basis_demand_for`]): the 128 of its default data, the WKS recipe
+/// ([`crate::descriptors::signatures::WksRecipe`]), the most its full path reads, so that its
+/// maps are those of any larger basis (the first 128 eigenpairs of a basis of 200 agree with
+/// them to 1e-14; the 97 faust_r pairs and the large pairs give the same maps) in about half the
+/// eigensolver's time (BENCHMARKS.md). The partial path reads every eigenpair (its heat-kernel
+/// scale and rectangular maps were tuned on 200: with 128 the faust_r_partial error rose from
+/// 12.6 to 18.5), so a pair that may be partial keeps [`DEFAULT_BASIS_SIZE`].
+pub const AXIOMATIC_BASIS_SIZE: usize = 128;
 
 /// Weight of the completion method's Laplacian-commutativity (isometry prior) term by default
 /// (EXPERIMENTS.md: it won on the faust_r dev pairs; 0 is the paper's pure form (11)).

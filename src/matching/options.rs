@@ -34,7 +34,7 @@ use serde::{Deserialize, Serialize};
 
 use super::axiomatic::NearSearch;
 use super::partial::{PartialMode, PartialOptions};
-use super::{completion_defaults, Extraction, MatchOptions, Method, Refine, DEFAULT_BASIS_SIZE};
+use super::{completion_defaults, Extraction, MatchOptions, Method, Refine, AXIOMATIC_BASIS_SIZE, DEFAULT_BASIS_SIZE};
 use super::{DEFAULT_COMPLETION_COMMUTATIVITY, DEFAULT_COMPLETION_COMMUTATIVITY_K};
 use crate::completion::SettledMap;
 use crate::completion::{Form, Init, L1Sampling, OptimizeOptions, Optimizer, Precision, Precondition, Scaling};
@@ -275,8 +275,9 @@ match_settings! {
     /// Size k of the baselines' functional map (default 50), the rank of the completion method
     /// (its default per data), and for the axiomatic method its one candidate size.
     k: usize,
-    /// Eigenpairs per shape k': the baselines' basis size (default 200), the completion
-    /// method's subspace size.
+    /// Eigenpairs per shape k': the basis size of the baselines and the axiomatic method
+    /// (default 200; 128 for the axiomatic method where X cannot be a part,
+    /// [`MatchSettings::basis_demand_for`]), the completion method's subspace size.
     kprime: usize,
     /// μ_c of eq. (5) (default 1e-3 for rich data, 0 for scarce data).
     commutativity: f64,
@@ -720,6 +721,31 @@ impl MatchSettings {
         }
     }
 
+    /// [`MatchSettings::basis_demand`] for a pair whose X is known: where the axiomatic method
+    /// cannot take its partial path (`partial` false, from
+    /// [`super::partial::may_be_partial`]) and `kprime` is not given, the basis holds what its
+    /// sizes and its data need, at least [`AXIOMATIC_BASIS_SIZE`] eigenpairs, instead of
+    /// [`DEFAULT_BASIS_SIZE`]: the full path reads no eigenpair beyond those (the maps of both
+    /// sizes are the same), the partial path's heat-kernel scale and rectangular maps read them
+    /// all. Otherwise the same as [`MatchSettings::basis_demand`].
+    pub fn basis_demand_for(&self, opts: &MatchOptions, sp: &dyn Spelling, partial: bool) -> Result<BasisDemand> {
+        let demand = self.basis_demand(opts, sp)?;
+        if opts.method != Method::Axiomatic || partial || self.kprime.is_some() || demand.key != "kprime" {
+            return Ok(demand);
+        }
+        let parts = self.demands(opts, sp);
+        match parts.iter().max_by_key(|d| d.size) {
+            Some(d) if d.size >= AXIOMATIC_BASIS_SIZE => {
+                Ok(BasisDemand { size: d.size, who: d.who.clone(), key: d.key.unwrap_or("kprime") })
+            }
+            _ => Ok(BasisDemand {
+                size: AXIOMATIC_BASIS_SIZE,
+                who: format!("{} (default {AXIOMATIC_BASIS_SIZE} for a whole X)", sp.name("kprime")),
+                key: "kprime",
+            }),
+        }
+    }
+
     /// The error for the shape `shape` (its name as the front end shows it) of `n` vertices,
     /// too small for the `demand.size` eigenpairs per shape that the options ask for
     /// (`demand.size ≥ n`): it names every option that asks for n or more and the values that
@@ -950,6 +976,22 @@ mod tests {
         let s = MatchSettings::default();
         let d = s.basis_demand(&s.resolve(true).unwrap(), &Keywords).unwrap();
         assert_eq!((d.size, d.who.as_str(), d.key), (200, "kprime (default 200)", "kprime"));
+        // For a pair whose X cannot be a part: 128 (the default WKS's eigenpairs), unless the
+        // sizes ask for more or kprime is given; the baselines keep 200.
+        let o = s.resolve(true).unwrap();
+        assert_eq!(s.basis_demand_for(&o, &Keywords, true).unwrap(), d);
+        let whole = s.basis_demand_for(&o, &Keywords, false).unwrap();
+        assert_eq!((whole.size, whole.who.as_str()), (128, "kprime (default 128 for a whole X)"));
+        let s = MatchSettings { zoomout_to: Some(150), ..Default::default() };
+        let d = s.basis_demand_for(&s.resolve(true).unwrap(), &Keywords, false).unwrap();
+        assert_eq!((d.size, d.who.as_str(), d.key), (150, "zoomout_to=150", "zoomout_to"));
+        for s in [
+            MatchSettings { kprime: Some(150), ..Default::default() },
+            MatchSettings { method: Some(Method::Fmap), ..Default::default() },
+        ] {
+            let o = s.resolve(true).unwrap();
+            assert_eq!(s.basis_demand_for(&o, &Keywords, false).unwrap(), s.basis_demand(&o, &Keywords).unwrap());
+        }
         let s = MatchSettings { kprime: Some(20), ..Default::default() };
         let e = s.basis_demand(&s.resolve(true).unwrap(), &Keywords).unwrap_err().to_string();
         assert!(

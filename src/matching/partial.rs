@@ -186,7 +186,12 @@ pub struct Detection {
 
 /// Total length of the boundary loops of a shape / √area (None for a point set).
 fn relative_boundary(s: &PreparedShape) -> Option<f64> {
-    let Shape::Mesh(m) = &s.shape else { return None };
+    boundary_per_root_area(&s.shape, s.area)
+}
+
+/// Total length of the boundary loops of `shape` / √`area` (None for a point set).
+fn boundary_per_root_area(shape: &Shape, area: f64) -> Option<f64> {
+    let Shape::Mesh(m) = shape else { return None };
     let v = m.vertices();
     let length: f64 = m
         .boundary_loops()
@@ -201,7 +206,31 @@ fn relative_boundary(s: &PreparedShape) -> Option<f64> {
         })
         .sum();
     // abs: the empty sum is −0.
-    Some(length.abs() / s.area.sqrt())
+    Some(length.abs() / area.sqrt())
+}
+
+/// Detection's first test: X's boundary (`bx`, in units of √area(X)) exceeds Y's (`by`) by
+/// `opts.min_boundary` or more.
+fn is_open(bx: f64, by: Option<f64>, opts: &PartialOptions) -> bool {
+    bx - by.unwrap_or(0.0) >= opts.min_boundary
+}
+
+/// Whether [`detect`] can find X a part of Y, from the shapes as loaded and their areas alone
+/// (`area_x`, `area_y`: Σ A of their Laplacians, [`crate::prepared::area_of_mass`], as
+/// [`PreparedShape::area`]), before any eigenpair: `opts.mode` Always, or Auto with X a mesh whose
+/// boundary exceeds Y's by `opts.min_boundary` (detection's first test, on the same areas; without
+/// it X is whole whatever the eigenpairs say). The basis size depends on it
+/// ([`super::MatchSettings::basis_demand_for`]): the partial path reads every eigenpair of the
+/// bases, the full path only the first [`super::AXIOMATIC_BASIS_SIZE`].
+pub fn may_be_partial(x: &Shape, area_x: f64, y: &Shape, area_y: f64, opts: &PartialOptions) -> bool {
+    match opts.mode {
+        PartialMode::Always => true,
+        PartialMode::Never => false,
+        PartialMode::Auto => match boundary_per_root_area(x, area_x) {
+            None => false,
+            Some(bx) => is_open(bx, boundary_per_root_area(y, area_y), opts),
+        },
+    }
 }
 
 /// The heat-kernel scale of a part X against Y ([`super::heat_scale::heat_scale_ratio`]) on
@@ -256,7 +285,7 @@ pub fn detect(x: &PreparedShape, y: &PreparedShape, opts: &PartialOptions) -> De
             (false, "X is a point set: no boundary to measure (use --partial for a part)".to_string())
         }
         (PartialMode::Auto, Some(b)) => {
-            let open = b - boundary_y.unwrap_or(0.0) >= opts.min_boundary;
+            let open = is_open(b, boundary_y, opts);
             // The areas are in the inputs' units, which two files need not share (a part in
             // millimetres, the whole in metres): where they say that an open X is too large,
             // the ratio without units decides. Not everywhere: where the units are shared the
