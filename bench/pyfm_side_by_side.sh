@@ -65,6 +65,18 @@ if awk -v l="$load1" 'BEGIN { exit !(l > 0.5) }'; then
     log "WARNING: 1-minute load average is $load1: other processes are using the CPUs, timings will be noisy"
 fi
 
+# peak FILE CMD...: runs CMD, writing its peak resident memory (KB) to FILE with GNU time when
+# it is there.
+peak() {
+    local file=$1
+    shift
+    if [[ -x /usr/bin/time ]]; then
+        /usr/bin/time -f %M -o "$file" "$@"
+    else
+        "$@"
+    fi
+}
+
 EVAL_LIST=$OUT/eval_jobs.txt
 : >"$EVAL_LIST"
 T_START=$(now)
@@ -87,14 +99,14 @@ for ds in $DATASETS; do
             cut -d' ' -f1-3 /proc/loadavg >"$dir/loadavg"
             t0=$(now)
             # shellcheck disable=SC2086
-            if "$FUNCORR_BIN" match "$x" "$y" $FUNCORR_ARGS --no-render --no-cache -o "$dir/funcorr" \
+            if peak "$dir/funcorr.maxrss" "$FUNCORR_BIN" match "$x" "$y" $FUNCORR_ARGS --no-render --no-cache -o "$dir/funcorr" \
                     >"$dir/funcorr.stdout" 2>"$dir/funcorr.stderr"; then
                 elapsed "$t0" "$(now)" >"$dir/funcorr.wall"
             else
                 log "$ds $xn -> $yn: funcorr failed, see $dir/funcorr.stderr"
             fi
             t0=$(now)
-            if "$PY" bench/pyfm_pipeline.py run --x "$x" --y "$y" --out "$dir/pyfm" --variant example \
+            if peak "$dir/pyfm.maxrss" "$PY" bench/pyfm_pipeline.py run --x "$x" --y "$y" --out "$dir/pyfm" --variant example \
                     2>"$dir/pyfm.stderr"; then
                 elapsed "$t0" "$(now)" >"$dir/pyfm.wall"
             else

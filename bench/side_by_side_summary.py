@@ -55,6 +55,16 @@ def pyfm_pipeline_seconds(path):
     return None if any(x is None for x in parts) else sum(parts)
 
 
+def load_peak(path):
+    """The last line of a GNU time `-f %M` file (KB) in MiB, or None."""
+    try:
+        with open(path) as f:
+            lines = [l.strip() for l in f if l.strip()]
+        return int(lines[-1]) / 1024.0
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 def pair_rows(out, ds):
     rows = []
     root = os.path.join(out, ds)
@@ -71,6 +81,9 @@ def pair_rows(out, ds):
         r["funcorr_s"] = load_float(os.path.join(d, "funcorr.wall"))
         r["pyfm_wall_s"] = load_float(os.path.join(d, "pyfm.wall"))
         r["pyfm_pipeline_s"] = pyfm_pipeline_seconds(os.path.join(d, "pyfm", "pyfm.json"))
+        # Peak resident memory of each process in MiB (GNU time's %M, KB), when measured.
+        r["funcorr_mib"] = load_peak(os.path.join(d, "funcorr.maxrss"))
+        r["pyfm_mib"] = load_peak(os.path.join(d, "pyfm.maxrss"))
         rows.append(r)
     return rows
 
@@ -82,6 +95,10 @@ def mean(vals):
 
 def f2(v):
     return "—" if v is None else f"{v:.2f}"
+
+
+def f0(v):
+    return "—" if v is None else f"{v:.0f}"
 
 
 def summarize(rows, tag):
@@ -122,16 +139,23 @@ def main():
             s = summarize(rows, tag)
             if tag == "funcorr":
                 s["seconds"] = mean(r["funcorr_s"] for r in rows)
-                secs = f2(s["seconds"])
+                s["peak_mib"] = mean(r["funcorr_mib"] for r in rows)
+                secs = f"{f2(s['seconds'])}; {f0(s['peak_mib'])} MiB"
             elif tag == "pyfm-zoomout":
                 s["seconds"] = mean(r["pyfm_pipeline_s"] for r in rows)
                 s["process_seconds"] = mean(r["pyfm_wall_s"] for r in rows)
-                secs = f"{f2(s['seconds'])} (process {f2(s['process_seconds'])})"
+                s["peak_mib"] = mean(r["pyfm_mib"] for r in rows)
+                secs = f"{f2(s['seconds'])} (process {f2(s['process_seconds'])}; {f0(s['peak_mib'])} MiB)"
             else:
                 secs = ""
             stats[tag] = s
             summary.append(f"| {ds} | {label} | {s['n']} | {f2(s['direct'])} | {f2(s['sym'])} | "
                            f"{f2(s['median_direct'])} | {f2(s['max_direct'])} | {s['failed']} | {s['flipped']} | {secs} |")
+        ratios = [r["funcorr_s"] / r["pyfm_wall_s"] for r in rows if r["funcorr_s"] and r["pyfm_wall_s"]]
+        if ratios:
+            stats["funcorr"]["wall_ratio_to_pyfm_process"] = {"mean": mean(ratios), "max": max(ratios)}
+            summary.append(f"| {ds} | funcorr / pyFM process wall | {len(ratios)} | mean {mean(ratios):.3f}, "
+                           f"max {max(ratios):.3f} | | | | | | |")
         for r in rows:
             t = r["tools"]
             per_pair.append(
@@ -142,7 +166,8 @@ def main():
     note = ["", f"Errors ×100: `funcorr eval --geodesics exact`; direct: no flip forgiven; sym: the left–right "
             f"flip forgiven. Failed: direct > {FAIL:g}; flipped: failed and sym < {FLIP:g} × direct. Seconds: "
             "funcorr = wall clock of `funcorr match`; pyFM = load + spectrum + descriptors + fit + ZoomOut "
-            "(pyfm.json) and, in parentheses, the wall clock of its Python process."]
+            "(pyfm.json) and, in parentheses, the wall clock of its Python process; MiB: mean peak resident "
+            "memory of each process (GNU time)."]
     with open(os.path.join(a.out, "summary.md"), "w") as f:
         f.write("\n".join(summary + note) + "\n")
     with open(os.path.join(a.out, "per_pair.md"), "w") as f:
