@@ -135,8 +135,19 @@ pub fn nearest_neighbors_near_rows(
         crate::spatial::nearest3(&points(coarse.samples, coarse.x), &points(rows, coarse.x)),
         coarse.samples.len(),
     );
-    let y_members = members(crate::spatial::nearest3(&centres, coarse.y), centres.len());
+    let mut y_members = members(crate::spatial::nearest3(&centres, coarse.y), centres.len());
     let near = crate::spatial::nearest_n3(&centres, &points(coarse.images, coarse.y), cells.min(centres.len()));
+    // Only the cells of Y that some query searches are copied below (a few rows of X search a
+    // small part of Y).
+    let mut needed = vec![false; centres.len()];
+    for (queries, near_cells) in x_cells.iter().zip(&near) {
+        if !queries.is_empty() {
+            near_cells.iter().for_each(|&c| needed[c] = true);
+        }
+    }
+    for (list, _) in y_members.iter_mut().zip(&needed).filter(|(_, &n)| !n) {
+        list.clear();
+    }
     // Y's rows by cell (one pass over m × d): every cell one contiguous block, column-major
     // within the block, so the kernel below streams a cell's rows with no gather and no
     // stride of m between columns.
@@ -771,6 +782,60 @@ pub(crate) mod tests {
     /// The search near a coarse map equals the exact search when the coarse map is right (a
     /// 2562-vertex sphere and a renumbered copy, 6-D embeddings with noise, 100 samples, 8
     /// cells), and differs from it when the coarse map is wrong (so the restriction is real).
+    /// The restricted search keeps the exact f64 argmin (ties to the smallest vertex id) at
+    /// every magnitude: with cells covering all of Y it
+    /// equals the brute-force search written out, on queries in tight clusters of rows (many
+    /// candidates to tell apart), exact copies of rows and a tie.
+    #[test]
+    fn restricted_search_keeps_the_exact_argmin_at_every_magnitude() {
+        let (m, n, d) = (300, 120, 20);
+        let mut rng = crate::spectral::Normal::new(9);
+        // Rows in 30 tight clusters of 10 (within 1e-3 of their centre, ‖r‖² ≈ 20): the
+        // distances of a query to its cluster's rows differ by about 1e-6 relative, below what
+        // single precision tells apart, so the screen keeps several candidates per query.
+        let centres = Mat::from_fn(30, d, |_, _| rng.sample());
+        let mut r0 = Mat::from_fn(m, d, |j, c| centres[(j / 10, c)] + 1e-3 * rng.sample());
+        for c in 0..d {
+            r0[(140, c)] = r0[(250, c)]; // a tie for query 20 (= row 140): row 140 must win
+        }
+        let q0 = Mat::from_fn(n, d, |i, c| {
+            if i % 5 == 0 {
+                r0[((i * 7) % m, c)]
+            } else {
+                centres[((i * 7) % m / 10, c)] + 1e-3 * rng.sample()
+            }
+        });
+        let pos = |count: usize, seed: u64| -> Vec<[f64; 3]> {
+            let mut g = crate::spectral::Normal::new(seed);
+            (0..count).map(|_| [g.sample(), g.sample(), g.sample()]).collect()
+        };
+        let (px, py) = (pos(n, 1), pos(m, 2));
+        let samples: Vec<usize> = (0..n).step_by(10).collect();
+        let images: Vec<usize> = samples.iter().map(|&s| (s * 7) % m).collect();
+        let y_cells: Vec<usize> = (0..m).step_by(13).collect();
+        let coarse = CoarseMap { x: &px, y: &py, samples: &samples, images: &images, y_cells: &y_cells };
+        let all: Vec<usize> = (0..n).collect();
+        for magnitude in [1e-30, 1e-3, 1.0, 1e20, 1e29] {
+            let (r, q) = (&r0 * magnitude, &q0 * magnitude);
+            let brute: Vec<usize> = (0..n)
+                .map(|i| {
+                    let mut best = (f64::INFINITY, usize::MAX);
+                    for j in 0..m {
+                        let rn = (0..d).fold(0.0, |s, c| s + r[(j, c)] * r[(j, c)]);
+                        let dot = (0..d).fold(0.0, |s, c| s + q[(i, c)] * r[(j, c)]);
+                        if rn - 2.0 * dot < best.0 {
+                            best = (rn - 2.0 * dot, j);
+                        }
+                    }
+                    best.1
+                })
+                .collect();
+            assert_eq!(brute[20], 140, "the tie");
+            let near = nearest_neighbors_near_rows(r.as_ref(), q.as_ref(), &coarse, y_cells.len(), &all).unwrap();
+            assert_eq!(near, brute, "magnitude {magnitude}");
+        }
+    }
+
     #[test]
     fn search_near_a_coarse_map_equals_the_exact_search() {
         let x = crate::primitives::bumpy_sphere(4);

@@ -359,10 +359,7 @@ impl TriMesh {
         for f in &self.faces {
             for c in 0..3 {
                 let (i, j) = (f[c], f[(c + 1) % 3]);
-                if i != j
-                    && on_boundary[i as usize]
-                    && on_boundary[j as usize]
-                    && once.contains(&[i.min(j), i.max(j)])
+                if i != j && on_boundary[i as usize] && on_boundary[j as usize] && once.contains(&[i.min(j), i.max(j)])
                 {
                     next.entry(i).or_default().push(j);
                     starts.push(i);
