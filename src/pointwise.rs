@@ -148,15 +148,27 @@ pub fn nearest_neighbors_near_rows(
     for (list, _) in y_members.iter_mut().zip(&needed).filter(|(_, &n)| !n) {
         list.clear();
     }
-    // Y's rows by cell (one pass over m × d): every cell one contiguous block, column-major
-    // within the block, so the kernel below streams a cell's rows with no gather and no
-    // stride of m between columns.
-    let cells_y = CellBlocks::new(reference, &y_members);
+    // The screen's units: σ brings the largest entry of the queries' rows and of Y's rows into
+    // [−1, 1] (`spatial::ScreenScale`).
     let usable = |v: f64| v.is_finite() && v.abs() <= crate::spatial::MAX_EMBEDDING;
-    let rows_usable = (0..d).all(|c| rows.iter().all(|&i| usable(query[(i, c)])));
-    if !rows_usable || !cells_y.values.iter().all(|&v| usable(v)) {
-        return Err(Error::invalid("embedding", "it contains a non-finite value or one beyond 1e30 in magnitude"));
+    let mut largest = 0.0f64;
+    for c in 0..d {
+        let col = query.col(c);
+        for &i in rows {
+            let v = col[i];
+            if !usable(v) {
+                return Err(Error::invalid(
+                    "embedding",
+                    "it contains a non-finite value or one beyond 1e30 in magnitude",
+                ));
+            }
+            largest = largest.max(v.abs());
+        }
     }
+    // Y's rows by cell: every cell one contiguous block, in f64 rows and in f32 strips.
+    let (mut cells_y, largest_y) = CellBlocks::new(reference, &y_members)?;
+    let scale = crate::spatial::ScreenScale::new(largest.max(largest_y), d);
+    cells_y.screen_in(&scale);
     crate::progress::check()?;
     let results: Vec<Vec<(usize, usize)>> = x_cells
         .par_iter()
@@ -165,16 +177,30 @@ pub fn nearest_neighbors_near_rows(
             if queries.is_empty() || crate::progress::cancelled() {
                 return Vec::new(); // a cancelled search is discarded by the check below
             }
-            // The queries' rows, row-major, padded with zero rows to whole tiles.
-            let mut q = vec![0.0f64; queries.len().div_ceil(QUERY_TILE) * QUERY_TILE * d];
+            let qn = queries.len();
+            // The queries' rows, row-major: in f64, and scaled in f32 padded with zero rows to
+            // whole tiles; each query's factor of the screen's bound.
+            let mut q64 = vec![0.0f64; qn * d];
             for c in 0..d {
+                let col = query.col(c);
                 for (a, &i) in queries.iter().enumerate() {
-                    q[a * d + c] = query[(rows[i], c)];
+                    q64[a * d + c] = col[rows[i]];
                 }
             }
-            let best =
-                pulp::Arch::new().dispatch(NearestInCells { y: &cells_y, cells: near_cells, q: &q, qn: queries.len() });
-            queries.iter().zip(best).map(|(&i, j)| (i, j)).collect()
+            let mut q32 = vec![0.0f32; qn.div_ceil(QUERY_TILE) * QUERY_TILE * d];
+            for (x, &v) in q32.iter_mut().zip(&q64) {
+                *x = (scale.sigma * v) as f32;
+            }
+            let factor: Vec<f32> =
+                q64.chunks_exact(d).map(|r| scale.query(r.iter().fold(0.0, |s, v| s + v * v))).collect();
+            let mut best_hi = vec![f32::INFINITY; qn];
+            let mut cands: Vec<Vec<(f32, usize)>> = vec![Vec::new(); qn];
+            screen_cells(Screen { y: &cells_y, cells: near_cells, q: &q32, factor: &factor }, &mut best_hi, &mut cands);
+            queries
+                .iter()
+                .enumerate()
+                .map(|(a, &i)| (i, check_candidates(&cells_y, &q64[a * d..(a + 1) * d], &cands[a], best_hi[a])))
+                .collect()
         })
         .collect();
     crate::progress::check()?;
@@ -189,30 +215,42 @@ pub fn nearest_neighbors_near_rows(
 }
 
 /// The rows of Y (m × d) grouped by cell, each cell padded to a multiple of [`ROW_TILE`] rows:
-/// cell `c` holds the rows `starts[c]..starts[c + 1]` of the padded order, `order[t]` the vertex
-/// of padded row t (ascending within a cell; `usize::MAX` for padding), stored in one block of
-/// `values` from `starts[c] · d`, in tiles of [`ROW_TILE`] rows, each tile column-major (entry
-/// (t, col) of a cell at `starts[c] · d + ⌊t / ROW_TILE⌋ · ROW_TILE · d + col · ROW_TILE + t mod
-/// ROW_TILE`: a tile is one contiguous strip, read in order by the kernel), with the squared
-/// norms `norms[t]` (summed over the columns in order, as the exact search sums them; +∞ for
-/// padding, so a padding row is never nearest).
+/// cell `c` holds the padded rows `starts[c]..starts[c + 1]`, `order[t]` the vertex of padded
+/// row t (ascending within a cell; `usize::MAX` for padding). Each padded row is stored twice:
+/// in f64, row-major (`rows`, entry (t, col) at t · d + col: the check reads a candidate's row
+/// contiguously), with its squared norm `norms[t]` (summed over the columns in order, as the
+/// exact search sums them; +∞ for padding); and scaled by σ in f32 for the screen (`strips`: in
+/// tiles of [`ROW_TILE`] rows, each tile column-major, entry (t, col) at ⌊t / ROW_TILE⌋ ·
+/// ROW_TILE · d + col · ROW_TILE + t mod ROW_TILE), with the screen's terms `len`, `norm` and
+/// `bound` ([`crate::spatial::ScreenScale::reference`]; `norm` = f32::MAX for padding, so a
+/// padding row never passes the screen).
 struct CellBlocks {
     order: Vec<usize>,
     starts: Vec<usize>,
-    values: Vec<f64>,
+    rows: Vec<f64>,
     norms: Vec<f64>,
+    strips: Vec<f32>,
+    len: Vec<f32>,
+    norm: Vec<f32>,
+    bound: Vec<f32>,
     d: usize,
 }
 
-/// Rows of a cell per register tile of [`NearestInCells`] (two AVX2 vectors of f64).
-const ROW_TILE: usize = 8;
+/// Rows of a cell per register tile of the screen (one AVX-512 vector of f32, two of AVX2).
+const ROW_TILE: usize = 16;
 
-/// Query rows per register tile of [`NearestInCells`].
+/// Query rows per register tile of the screen.
 const QUERY_TILE: usize = 4;
 
+/// Padded rows that the fill of [`CellBlocks`] copies column by column at a time (64 rows × d
+/// f64: within L2 for d up to a few hundred).
+const FILL_ROWS: usize = 64;
+
 impl CellBlocks {
-    /// The blocks of `reference` (m × d) for the cells `members` (vertex lists of Y).
-    fn new(reference: MatRef<f64>, members: &[Vec<usize>]) -> Self {
+    /// The f64 rows of `reference` (m × d) for the cells `members` (vertex lists of Y) and the
+    /// largest magnitude among them; the f32 strips follow in [`CellBlocks::screen_in`]. Errors:
+    /// a value that is not finite or beyond [`crate::spatial::MAX_EMBEDDING`] in those rows.
+    fn new(reference: MatRef<f64>, members: &[Vec<usize>]) -> Result<(Self, f64)> {
         let d = reference.ncols();
         let padded = |len: usize| len.div_ceil(ROW_TILE) * ROW_TILE;
         let mut starts = Vec::with_capacity(members.len() + 1);
@@ -220,107 +258,187 @@ impl CellBlocks {
         for l in members {
             starts.push(starts[starts.len() - 1] + padded(l.len()));
         }
-        let rows = starts[starts.len() - 1];
-        let mut order = vec![usize::MAX; rows];
+        let total = starts[starts.len() - 1];
+        let mut order = vec![usize::MAX; total];
         for (cell, list) in members.iter().enumerate() {
             order[starts[cell]..starts[cell] + list.len()].copy_from_slice(list);
         }
-        let mut values = vec![0.0f64; rows * d];
-        let mut norms: Vec<f64> = order.iter().map(|&j| if j == usize::MAX { f64::INFINITY } else { 0.0 }).collect();
-        // One contiguous range of strips per thread, filled column by column: each column's
-        // reads stay within that column (L2-sized at 52k vertices) and each strip takes one
-        // cache line of it, instead of one random read of the whole matrix per value.
-        let strips = rows / ROW_TILE;
-        let per_task = strips.div_ceil(rayon::current_num_threads().max(1)).max(1);
-        values
-            .par_chunks_mut(per_task * ROW_TILE * d)
-            .zip(norms.par_chunks_mut(per_task * ROW_TILE))
-            .zip(order.par_chunks(per_task * ROW_TILE))
-            .for_each(|((values, norms), order)| {
+        let mut rows = vec![0.0f64; total * d];
+        // Blocks of FILL_ROWS padded rows in parallel, each filled column by column (a column's
+        // reads stay within that column; the block's rows stay in cache), with the largest
+        // magnitude (NaN when a value is not usable).
+        let largest = rows
+            .par_chunks_mut(FILL_ROWS * d)
+            .zip(order.par_chunks(FILL_ROWS))
+            .map(|(rows, order)| {
+                let mut largest = 0.0f64;
                 for c in 0..d {
                     let col = reference.col(c);
-                    for ((strip, norms), order) in values
-                        .chunks_exact_mut(ROW_TILE * d)
-                        .zip(norms.chunks_exact_mut(ROW_TILE))
-                        .zip(order.chunks_exact(ROW_TILE))
-                    {
-                        let lanes = &mut strip[c * ROW_TILE..(c + 1) * ROW_TILE];
-                        for ((x, norm), &j) in lanes.iter_mut().zip(norms.iter_mut()).zip(order) {
-                            if j != usize::MAX {
-                                let v = col[j];
-                                *x = v;
-                                *norm += v * v;
-                            }
+                    for (row, &j) in rows.chunks_exact_mut(d).zip(order) {
+                        if j != usize::MAX {
+                            let v = col[j];
+                            row[c] = v;
+                            let a = v.abs();
+                            largest = if a > largest || a.is_nan() { a } else { largest };
                         }
                     }
                 }
-            });
-        CellBlocks { order, starts, values, norms, d }
+                largest
+            })
+            .reduce(|| 0.0, |a, b| if b > a || b.is_nan() { b } else { a });
+        if !(largest <= crate::spatial::MAX_EMBEDDING) {
+            return Err(Error::invalid("embedding", "it contains a non-finite value or one beyond 1e30 in magnitude"));
+        }
+        let norms: Vec<f64> = rows
+            .par_chunks(d)
+            .zip(order.par_iter())
+            .map(|(row, &j)| if j == usize::MAX { f64::INFINITY } else { row.iter().fold(0.0, |s, v| s + v * v) })
+            .collect();
+        let blocks = CellBlocks {
+            order,
+            starts,
+            rows,
+            norms,
+            strips: Vec::new(),
+            len: Vec::new(),
+            norm: Vec::new(),
+            bound: Vec::new(),
+            d,
+        };
+        Ok((blocks, largest))
+    }
+
+    /// The f32 strips and the screen's terms, in the screen's units `scale`.
+    fn screen_in(&mut self, scale: &crate::spatial::ScreenScale) {
+        let d = self.d;
+        let mut strips = vec![0.0f32; self.rows.len()];
+        strips.par_chunks_mut(ROW_TILE * d).zip(self.rows.par_chunks(ROW_TILE * d)).for_each(|(strip, rows)| {
+            for (l, row) in rows.chunks_exact(d).enumerate() {
+                for (c, &v) in row.iter().enumerate() {
+                    strip[c * ROW_TILE + l] = (scale.sigma * v) as f32;
+                }
+            }
+        });
+        let terms: Vec<(f32, f32, f32)> = self
+            .norms
+            .iter()
+            .map(|&sq| if sq.is_finite() { scale.reference(sq, true) } else { (0.0, f32::MAX, 0.0) })
+            .collect();
+        self.strips = strips;
+        self.len = terms.iter().map(|t| t.0).collect();
+        self.norm = terms.iter().map(|t| t.1).collect();
+        self.bound = terms.iter().map(|t| t.2).collect();
     }
 }
 
-/// The nearest row of Y, among the cells `cells` of [`CellBlocks`] `y`, of every query row of
-/// `q` (row-major, d values per row, padded with zero rows to a multiple of [`QUERY_TILE`];
-/// `qn` real rows): the vertex j minimizing ‖r_j‖² − 2 q·r_j with the dot product summed over
-/// the columns in order, ties to the smallest vertex id — the exact search's rule, so the result
-/// equals [`nearest_neighbors`] among those rows. A register tile of [`QUERY_TILE`] queries ×
-/// [`ROW_TILE`] rows is accumulated over all d columns (a small GEMM, vectorized across the
-/// rows). A query with no candidate row gets `usize::MAX`.
-struct NearestInCells<'a> {
+/// One screen of [`nearest_neighbors_near_rows`]: the cells `cells` of Y against the query rows
+/// `q` (scaled, f32, row-major, d values per row, padded with zero rows to a multiple of
+/// [`QUERY_TILE`]), `factor` the bound's factor of each real query
+/// ([`crate::spatial::ScreenScale::query`]).
+#[derive(Clone, Copy)]
+struct Screen<'a> {
     y: &'a CellBlocks,
     cells: &'a [usize],
-    q: &'a [f64],
-    qn: usize,
+    q: &'a [f32],
+    factor: &'a [f32],
 }
 
-impl pulp::WithSimd for NearestInCells<'_> {
-    type Output = Vec<usize>;
+crate::linalg::at_vector_width! {
+    /// [`screen_cells_generic`] at the CPU's vector width.
+    fn screen_cells(screen: Screen, best_hi: &mut [f32], cands: &mut [Vec<(f32, usize)>]) = screen_cells_generic
+}
 
-    // Inlined into pulp's dispatch, which compiles it for the CPU's widest vectors (AVX2:
-    // four f64 lanes); separate multiplies and adds (no fused multiply-add), so every lane sums
-    // its dot product exactly as the scalar loop would.
-    #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, simd: S) -> Vec<usize> {
-        let NearestInCells { y, cells, q, qn } = self;
-        let d = y.d;
-        // Vectors per tile row (ROW_TILE is a multiple of every lane count, 1 to 8).
-        let nv = ROW_TILE / S::F64_LANES;
-        let zero = simd.splat_f64s(0.0);
-        let mut best = vec![(f64::INFINITY, usize::MAX); qn];
-        let mut dots = [0.0f64; ROW_TILE];
-        for &cell in cells {
-            let (s, len) = (y.starts[cell], y.starts[cell + 1] - y.starts[cell]);
-            let block = &y.values[s * d..(s + len) * d];
-            for t0 in (0..len).step_by(ROW_TILE) {
-                // One strip of ROW_TILE rows × d (in L1 while every query passes over it).
-                let strip = &block[t0 * d..(t0 + ROW_TILE) * d];
-                for g0 in (0..qn).step_by(QUERY_TILE) {
-                    let tile: [&[f64]; QUERY_TILE] = std::array::from_fn(|a| &q[(g0 + a) * d..(g0 + a + 1) * d]);
-                    let mut acc = [[zero; ROW_TILE]; QUERY_TILE];
-                    for (c, rows) in strip.chunks_exact(ROW_TILE).enumerate() {
-                        let (col, _) = S::as_simd_f64s(rows);
-                        for (sums, row) in acc.iter_mut().zip(&tile) {
-                            let qc = simd.splat_f64s(row[c]);
-                            for (x, &r) in sums[..nv].iter_mut().zip(col) {
-                                *x = simd.add_f64s(*x, simd.mul_f64s(qc, r));
-                            }
+/// The single-precision screen of the restricted search (as [`crate::spatial`]'s exact search
+/// screens, with the same bound): for every query, the smallest upper bound `best_hi` of its
+/// distance ‖r_j‖² − 2 q·r_j over the rows of the cells, and in `cands` (lower bound, padded row)
+/// of every row whose lower bound does not exceed it (a superset of the rows that can be nearest;
+/// the list is pruned as the upper bound falls). A register tile of [`QUERY_TILE`] queries ×
+/// [`ROW_TILE`] rows is accumulated over all d columns, vectorized across the rows.
+#[inline(always)]
+fn screen_cells_generic(screen: Screen, best_hi: &mut [f32], cands: &mut [Vec<(f32, usize)>]) {
+    let Screen { y, cells, q, factor } = screen;
+    let (d, qn) = (y.d, factor.len());
+    for &cell in cells {
+        for t0 in (y.starts[cell]..y.starts[cell + 1]).step_by(ROW_TILE) {
+            // One strip of ROW_TILE rows × d (in L1 while every query passes over it).
+            let strip = &y.strips[t0 * d..(t0 + ROW_TILE) * d];
+            let rn: &[f32; ROW_TILE] = y.norm[t0..t0 + ROW_TILE].try_into().unwrap();
+            let rl: &[f32; ROW_TILE] = y.len[t0..t0 + ROW_TILE].try_into().unwrap();
+            let rb: &[f32; ROW_TILE] = y.bound[t0..t0 + ROW_TILE].try_into().unwrap();
+            for g0 in (0..qn).step_by(QUERY_TILE) {
+                let tile: [&[f32]; QUERY_TILE] = std::array::from_fn(|a| &q[(g0 + a) * d..(g0 + a + 1) * d]);
+                let mut acc = [[0.0f32; ROW_TILE]; QUERY_TILE];
+                for (c, col) in strip.chunks_exact(ROW_TILE).enumerate() {
+                    let col: &[f32; ROW_TILE] = col.try_into().unwrap();
+                    for (sums, row) in acc.iter_mut().zip(&tile) {
+                        let qc = row[c];
+                        for l in 0..ROW_TILE {
+                            sums[l] += qc * col[l];
                         }
                     }
-                    for (a, sums) in acc.iter().enumerate().take(qn - g0) {
-                        S::as_mut_simd_f64s(&mut dots).0.copy_from_slice(&sums[..nv]);
-                        let b = &mut best[g0 + a];
-                        for (l, &dot) in dots.iter().enumerate() {
-                            let (dist, j) = (y.norms[s + t0 + l] - 2.0 * dot, y.order[s + t0 + l]);
-                            if dist < b.0 || (dist == b.0 && j < b.1) {
-                                *b = (dist, j);
-                            }
+                }
+                for (a, dots) in acc.iter().enumerate().take(qn - g0) {
+                    let (i, sc) = (g0 + a, factor[g0 + a]);
+                    // The bounds as `spatial`'s screen forms them (its error analysis covers
+                    // their rounding); compare-and-select folds (`minps`, `maxps`).
+                    let e: [f32; ROW_TILE] = std::array::from_fn(|l| rn[l] - 2.0 * dots[l]);
+                    let hi =
+                        (0..ROW_TILE)
+                            .map(|l| e[l] + sc * rl[l] + rb[l])
+                            .fold(f32::INFINITY, |m, v| if v < m { v } else { m });
+                    if hi < best_hi[i] {
+                        best_hi[i] = hi;
+                    }
+                    let h = best_hi[i];
+                    let lo: [f32; ROW_TILE] = std::array::from_fn(|l| e[l] - sc * rl[l] - rb[l]);
+                    let margin = lo.iter().fold(f32::NEG_INFINITY, |m, &v| if h - v > m { h - v } else { m });
+                    if margin < 0.0 {
+                        continue;
+                    }
+                    let list = &mut cands[i];
+                    for (l, &v) in lo.iter().enumerate() {
+                        if v <= h {
+                            list.push((v, t0 + l));
                         }
+                    }
+                    if list.len() >= 64 {
+                        list.retain(|c| c.0 <= h);
                     }
                 }
             }
         }
-        best.into_iter().map(|b| b.1).collect()
     }
+}
+
+/// The nearest of the screen's candidates `cands` (lower bound, padded row of `y`) that pass its
+/// final upper bound `hi`, to the query row `q` (f64, d values): the vertex j minimizing ‖r_j‖² −
+/// 2 q·r_j, the dot product summed over the columns in order, ties to the smallest vertex id —
+/// the exact search's rule, so the result equals [`nearest_neighbors`] among the cells' rows.
+/// Candidates are evaluated eight at a time (one lane each). `usize::MAX` when there are none.
+fn check_candidates(y: &CellBlocks, q: &[f64], cands: &[(f32, usize)], hi: f32) -> usize {
+    const LANES: usize = 8;
+    let d = y.d;
+    let kept: Vec<usize> = cands.iter().filter(|c| c.0 <= hi).map(|c| c.1).collect();
+    let mut best = (f64::INFINITY, usize::MAX);
+    for group in kept.chunks(LANES) {
+        let mut dots = [0.0f64; LANES];
+        let rows: [&[f64]; LANES] = std::array::from_fn(|l| {
+            let t = group.get(l).copied().unwrap_or(group[0]);
+            &y.rows[t * d..(t + 1) * d]
+        });
+        for (c, &qc) in q.iter().enumerate() {
+            for l in 0..LANES {
+                dots[l] += qc * rows[l][c];
+            }
+        }
+        for (l, &t) in group.iter().enumerate() {
+            let (dist, j) = (y.norms[t] - 2.0 * dots[l], y.order[t]);
+            if dist < best.0 || (dist == best.0 && j < best.1) {
+                best = (dist, j);
+            }
+        }
+    }
+    best.1
 }
 
 /// Point-to-point map X → Y of a functional map C (k_Y × k_X, coefficients on X → coefficients
@@ -782,12 +900,12 @@ pub(crate) mod tests {
     /// The search near a coarse map equals the exact search when the coarse map is right (a
     /// 2562-vertex sphere and a renumbered copy, 6-D embeddings with noise, 100 samples, 8
     /// cells), and differs from it when the coarse map is wrong (so the restriction is real).
-    /// The restricted search keeps the exact f64 argmin (ties to the smallest vertex id) at
-    /// every magnitude: with cells covering all of Y it
+    /// The restricted search's single-precision screen keeps the exact f64 argmin (ties to the
+    /// smallest vertex id) at every magnitude and vector width: with cells covering all of Y it
     /// equals the brute-force search written out, on queries in tight clusters of rows (many
     /// candidates to tell apart), exact copies of rows and a tie.
     #[test]
-    fn restricted_search_keeps_the_exact_argmin_at_every_magnitude() {
+    fn restricted_screen_keeps_the_exact_argmin_at_every_magnitude() {
         let (m, n, d) = (300, 120, 20);
         let mut rng = crate::spectral::Normal::new(9);
         // Rows in 30 tight clusters of 10 (within 1e-3 of their centre, ‖r‖² ≈ 20): the
@@ -831,8 +949,12 @@ pub(crate) mod tests {
                 })
                 .collect();
             assert_eq!(brute[20], 140, "the tie");
-            let near = nearest_neighbors_near_rows(r.as_ref(), q.as_ref(), &coarse, y_cells.len(), &all).unwrap();
-            assert_eq!(near, brute, "magnitude {magnitude}");
+            for widest in 0..=2u8 {
+                let near = crate::linalg::with_widest(widest, || {
+                    nearest_neighbors_near_rows(r.as_ref(), q.as_ref(), &coarse, y_cells.len(), &all).unwrap()
+                });
+                assert_eq!(near, brute, "magnitude {magnitude}, width {widest}");
+            }
         }
     }
 

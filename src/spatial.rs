@@ -417,6 +417,55 @@ fn screen_generic(chunk: Chunk, scale: &[f32], best_hi: &mut [f32], cands: &mut 
     }
 }
 
+/// The units and rounding-error bounds of a single-precision screen of rows of dimension d
+/// ([`best_rows`] documents the bound; [`crate::pointwise::nearest_neighbors_near_rows`] screens
+/// with the same): entries are multiplied by σ, the power of two that brings the largest entry
+/// (in magnitude, over the queries and the reference rows) into [−1, 1].
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ScreenScale {
+    /// σ (exact power of two).
+    pub(crate) sigma: f64,
+    d: usize,
+}
+
+impl ScreenScale {
+    /// The scale for entries of magnitude at most `largest` (finite, ≥ 0) in d dimensions.
+    pub(crate) fn new(largest: f64, d: usize) -> Self {
+        // (The exponent is clamped so that σ stays finite when every entry is a subnormal f64.)
+        let sigma = if largest > 0.0 { 2f64.powi(-(largest.log2().ceil() as i32).clamp(-1000, 1000)) } else { 1.0 };
+        ScreenScale { sigma, d }
+    }
+
+    /// u₃₂ = 2⁻²⁴.
+    const U: f64 = f32::EPSILON as f64 / 2.0;
+
+    /// The spacing of f32's subnormal numbers, 2⁻¹⁴⁹.
+    fn tiny() -> f64 {
+        2f64.powi(-149)
+    }
+
+    /// A reference row's screen terms from its squared norm `sq` (f64, unscaled): (σ ‖r‖, the
+    /// norm term σ² ‖r‖² — 0 for an inner-product search, `euclidean` false —, the bound's part
+    /// that does not scale with ‖q‖), in f32.
+    pub(crate) fn reference(&self, sq: f64, euclidean: bool) -> (f32, f32, f32) {
+        let sigma = self.sigma;
+        let norm = if euclidean { sq } else { 0.0 };
+        let len = (sigma * sq.sqrt()) as f32;
+        let bound = (SLACK * (32.0 * Self::U * sigma * sigma * norm + 8.0 * self.d as f64 * Self::tiny())) as f32;
+        (len, (sigma * sigma * norm) as f32, bound)
+    }
+
+    /// A query row's factor of σ ‖r_j‖ in the bound, from its squared norm `sq` (f64,
+    /// unscaled): 2 ε ‖q‖ for the products and 16 u₃₂ ‖q‖ for the f32 evaluation of the bounds,
+    /// doubled, and 4 √d 2⁻¹⁴⁹ for entries below f32's normal range (scaled units).
+    pub(crate) fn query(&self, sq: f64) -> f32 {
+        let (u, d) = (Self::U, self.d as f64);
+        let eps = SCREEN_SAFETY * (d + 3.0) * u;
+        let qn = self.sigma * sq.sqrt();
+        (SLACK * (2.0 * (2.0 * eps * qn + 16.0 * u * qn) + 4.0 * d.sqrt() * Self::tiny())) as f32
+    }
+}
+
 /// argmin_j (‖r_j‖² − 2 q·r_j) (`euclidean`) or argmax_j q·r_j for every query row.
 ///
 /// Two passes, exact in double precision. *Screen:* the products q·r_j in single precision
@@ -460,18 +509,15 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
     // The screen works in units scaled by a power of two σ (exact) that brings every entry into
     // [−1, 1]: no f32 overflow, and no product below f32's range unless the entries' magnitudes
     // span more than 10³⁸ (covered by the bound's absolute term).
-    let largest = max_ref.max(max_query);
-    // (The exponent is clamped so that σ stays finite when every entry is a subnormal f64.)
-    let sigma = if largest > 0.0 { 2f64.powi(-(largest.log2().ceil() as i32).clamp(-1000, 1000)) } else { 1.0 };
-    let u = f32::EPSILON as f64 / 2.0;
-    let tiny = 2f64.powi(-149); // the spacing of f32's subnormal numbers
+    let screen_scale = ScreenScale::new(max_ref.max(max_query), d);
+    let sigma = screen_scale.sigma;
     let ref_sq = row_squared_norms(reference);
-    let ref_len: Vec<f32> = ref_sq.iter().map(|v| (sigma * v.sqrt()) as f32).collect();
+    let terms: Vec<(f32, f32, f32)> = ref_sq.iter().map(|&v| screen_scale.reference(v, euclidean)).collect();
+    let ref_len: Vec<f32> = terms.iter().map(|t| t.0).collect();
+    let ref_norm: Vec<f32> = terms.iter().map(|t| t.1).collect();
+    let ref_bound: Vec<f32> = terms.iter().map(|t| t.2).collect();
+    drop(terms);
     let ref_norm64: Vec<f64> = if euclidean { ref_sq } else { vec![0.0; m] };
-    let ref_norm: Vec<f32> = ref_norm64.iter().map(|v| (sigma * sigma * v) as f32).collect();
-    let ref_bound: Vec<f32> =
-        ref_norm64.iter().map(|v| (SLACK * (32.0 * u * sigma * sigma * v + 8.0 * d as f64 * tiny)) as f32).collect();
-    let eps = SCREEN_SAFETY * (d as f64 + 3.0) * u;
     let reference32 = round_to_f32_scaled(reference, sigma);
     let n = query.nrows();
     let starts: Vec<usize> = (0..n).step_by(QUERY_BLOCK).collect();
@@ -484,16 +530,8 @@ fn best_rows(reference: MatRef<f64>, query: MatRef<f64>, euclidean: bool) -> Res
             let len = QUERY_BLOCK.min(n - r0);
             let q = query.subrows(r0, len);
             let q32 = round_to_f32_scaled(q, sigma);
-            // The bound's factor of ‖r_j‖ (scaled units): 2 ε ‖q‖ for the products and 16 u ‖q‖
-            // for the f32 evaluation of the bounds, doubled, and 4 √d 2⁻¹⁴⁹ for entries below
-            // f32's normal range (see the function's documentation).
-            let scale: Vec<f32> = row_squared_norms(q)
-                .iter()
-                .map(|v| {
-                    let qn = sigma * v.sqrt();
-                    (SLACK * (2.0 * (2.0 * eps * qn + 16.0 * u * qn) + 4.0 * (d as f64).sqrt() * tiny)) as f32
-                })
-                .collect();
+            // The bound's factor of ‖r_j‖ (see the function's documentation).
+            let scale: Vec<f32> = row_squared_norms(q).iter().map(|&v| screen_scale.query(v)).collect();
             // The reference rows in chunks, so that the block of products stays in cache.
             let mut best_hi = vec![f32::INFINITY; len];
             let mut cands: Vec<Vec<(f32, usize)>> = vec![Vec::new(); len];
