@@ -286,7 +286,7 @@ impl CellBlocks {
                 largest
             })
             .reduce(|| 0.0, |a, b| if b > a || b.is_nan() { b } else { a });
-        if !(largest <= crate::spatial::MAX_EMBEDDING) {
+        if largest.is_nan() || largest > crate::spatial::MAX_EMBEDDING {
             return Err(Error::invalid("embedding", "it contains a non-finite value or one beyond 1e30 in magnitude"));
         }
         let norms: Vec<f64> = rows

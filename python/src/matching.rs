@@ -148,7 +148,7 @@ fn match_shapes<'py>(
         // computed (or cached), not truncated.
         enum Laplacianed {
             Ready(Arc<PreparedShape>),
-            Raw(Shape, funcorr::laplacian::Laplacian, Option<funcorr::prepared::Surface>),
+            Raw(Box<(Shape, funcorr::laplacian::Laplacian, Option<funcorr::prepared::Surface>)>),
         }
         let laplacian = |s: Side| -> funcorr::Result<Laplacianed> {
             match s {
@@ -156,7 +156,7 @@ fn match_shapes<'py>(
                 Side::Raw(shape) => {
                     funcorr::progress::stage("laplacian")?;
                     let (lap, surface) = funcorr::prepared::build_laplacian(&shape, choice)?;
-                    Ok(Laplacianed::Raw(shape, lap, surface))
+                    Ok(Laplacianed::Raw(Box::new((shape, lap, surface))))
                 }
             }
         };
@@ -165,7 +165,7 @@ fn match_shapes<'py>(
         fn shape_area(l: &Laplacianed) -> (&Shape, f64) {
             match l {
                 Laplacianed::Ready(p) => (&p.shape, p.area),
-                Laplacianed::Raw(shape, lap, _) => (shape, funcorr::prepared::area_of_mass(&lap.mass)),
+                Laplacianed::Raw(raw) => (&raw.0, funcorr::prepared::area_of_mass(&raw.1.mass)),
             }
         }
         let ((shx, ax), (shy, ay)) = (shape_area(&lx), shape_area(&ly));
@@ -173,7 +173,8 @@ fn match_shapes<'py>(
         let demand = settings.basis_demand_for(&opts_run, &Keywords, partial)?;
         let basis_k = demand.size;
         for (l, name) in [(&lx, "X"), (&ly, "Y")] {
-            if let Laplacianed::Raw(shape, ..) = l {
+            if let Laplacianed::Raw(raw) = l {
+                let shape = &raw.0;
                 if basis_k >= shape.n_vertices() {
                     return Err(settings.too_small(name, shape.n_vertices(), &opts_run, &demand, &Keywords));
                 }
@@ -182,7 +183,8 @@ fn match_shapes<'py>(
         let prep = |l: Laplacianed| -> funcorr::Result<Arc<PreparedShape>> {
             match l {
                 Laplacianed::Ready(p) => Ok(p),
-                Laplacianed::Raw(shape, lap, surface) => {
+                Laplacianed::Raw(raw) => {
+                    let (shape, lap, surface) = *raw;
                     funcorr::progress::stage("eigenbasis")?;
                     let (basis, _) = funcorr::spectral::eigen_basis_cached(
                         &lap,
