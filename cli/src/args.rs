@@ -299,7 +299,8 @@ pub(crate) struct PipelineArgs {
     #[arg(short)]
     pub(crate) k: Option<usize>,
     /// Eigenpairs per shape k': the basis size of the baselines and the axiomatic method
-    /// (default 200; 128 for the axiomatic method where X cannot be a part) or the subspace size
+    /// (default 200; 128 for the axiomatic method with the default data where X cannot be a
+    /// part) or the subspace size
     /// of the completion method (default 350 for scarce data, 50 for rich data).
     #[arg(long)]
     pub(crate) kprime: Option<usize>,

@@ -107,7 +107,7 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     let size = parse_size(&args.size)?;
     // Options that ask for too few eigenpairs fail before any work.
     settings.basis_demand(&opts, &Flags)?;
-    let least = settings.basis_demand_for(&opts, &Flags, false)?;
+    let least = settings.basis_demand_for(&opts, &Flags, true)?;
     // The output directory is created (and checked writable) before any work; it is published at
     // the end, or removed when the run fails.
     let staged = funcorr::io::staged::StagedDir::create(&args.output)?;
@@ -135,10 +135,12 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
         || ShapeLaplacian::new(y, &args.y, &args.lap, &mut sty),
     );
     let (lx, ly) = (lx?, ly?);
-    // The eigenpairs per shape: fewer where X cannot be a part (the partial path reads them all).
+    // The eigenpairs per shape: fewer where X cannot be a part and the data are the default WKS
+    // (the partial path and descriptors such as wks:N read them all).
     let area = |l: &ShapeLaplacian| funcorr::prepared::area_of_mass(&l.laplacian.mass);
     let partial = funcorr::matching::partial::may_be_partial(&lx.shape, area(&lx), &ly.shape, area(&ly), &opts.partial);
-    let demand = settings.basis_demand_for(&opts, &Flags, partial)?;
+    let lean = !partial && spec == PairDataSpec::WksRecipe;
+    let demand = settings.basis_demand_for(&opts, &Flags, lean)?;
     let basis_k = demand.size;
     for (path, shape) in [(&args.x, &lx.shape), (&args.y, &ly.shape)] {
         if basis_k >= shape.n_vertices() {

@@ -96,7 +96,7 @@ fn match_shapes<'py>(
     let (sx, sy) = (side(x, "X")?, side(y, "Y")?);
     // The fewest eigenpairs per shape the options may ask (the eigenpairs of this pair are known
     // after the Laplacians: fewer where X cannot be a part, whose partial path reads them all).
-    let least = settings.basis_demand_for(&opts, &Keywords, false).map_err(options::library_error)?;
+    let least = settings.basis_demand_for(&opts, &Keywords, true).map_err(options::library_error)?;
     if let (Some(key), true) = (given.first(), matches!(sx, Side::Ready(_)) && matches!(sy, Side::Ready(_))) {
         return Err(value_error(
             key,
@@ -169,8 +169,12 @@ fn match_shapes<'py>(
             }
         }
         let ((shx, ax), (shy, ay)) = (shape_area(&lx), shape_area(&ly));
+        // Fewer where X cannot be a part and the data are the default WKS or given (the partial
+        // path and descriptors such as wks:N read them all).
         let partial = funcorr::matching::partial::may_be_partial(shx, ax, shy, ay, &opts_run.partial);
-        let demand = settings.basis_demand_for(&opts_run, &Keywords, partial)?;
+        let lean = !partial
+            && matches!(data, Data::Given(..) | Data::Spec(funcorr::descriptors::spec::PairDataSpec::WksRecipe));
+        let demand = settings.basis_demand_for(&opts_run, &Keywords, lean)?;
         let basis_k = demand.size;
         for (l, name) in [(&lx, "X"), (&ly, "Y")] {
             if let Laplacianed::Raw(raw) = l {

@@ -121,7 +121,7 @@ pub struct MatchOptions {
 pub const DEFAULT_BASIS_SIZE: usize = 200;
 
 /// Eigenpairs per shape that `funcorr match` computes for the axiomatic method when X cannot be
-/// a part and its sizes need fewer (`--kprime` default,
+/// a part, the data are the default WKS (or given) and its sizes need fewer (`--kprime` default,
 /// [`options::MatchSettings::basis_demand_for`]): the 128 of its default data, the WKS recipe
 /// ([`crate::descriptors::signatures::WksRecipe`]), the most its full path reads, so that its
 /// maps are those of any larger basis (the first 128 eigenpairs of a basis of 200 agree with

@@ -721,16 +721,17 @@ impl MatchSettings {
         }
     }
 
-    /// [`MatchSettings::basis_demand`] for a pair whose X is known: where the axiomatic method
-    /// cannot take its partial path (`partial` false, from
-    /// [`super::partial::may_be_partial`]) and `kprime` is not given, the basis holds what its
-    /// sizes and its data need, at least [`AXIOMATIC_BASIS_SIZE`] eigenpairs, instead of
-    /// [`DEFAULT_BASIS_SIZE`]: the full path reads no eigenpair beyond those (the maps of both
-    /// sizes are the same), the partial path's heat-kernel scale and rectangular maps read them
-    /// all. Otherwise the same as [`MatchSettings::basis_demand`].
-    pub fn basis_demand_for(&self, opts: &MatchOptions, sp: &dyn Spelling, partial: bool) -> Result<BasisDemand> {
+    /// [`MatchSettings::basis_demand`] for a known pair and data: where the axiomatic method's
+    /// run reads no eigenpair beyond [`AXIOMATIC_BASIS_SIZE`] (`lean`: X cannot be a part,
+    /// [`super::partial::may_be_partial`] false, and the data are the default WKS recipe or
+    /// given as arrays — not descriptors of the whole basis such as `wks:N` or `hks`) and
+    /// `kprime` is not given, the basis holds what its sizes need, at least
+    /// [`AXIOMATIC_BASIS_SIZE`] eigenpairs, instead of [`DEFAULT_BASIS_SIZE`]: the maps are those
+    /// of the larger basis. The partial path's heat-kernel scale and rectangular maps read every
+    /// eigenpair. Otherwise the same as [`MatchSettings::basis_demand`].
+    pub fn basis_demand_for(&self, opts: &MatchOptions, sp: &dyn Spelling, lean: bool) -> Result<BasisDemand> {
         let demand = self.basis_demand(opts, sp)?;
-        if opts.method != Method::Axiomatic || partial || self.kprime.is_some() || demand.key != "kprime" {
+        if opts.method != Method::Axiomatic || !lean || self.kprime.is_some() || demand.key != "kprime" {
             return Ok(demand);
         }
         let parts = self.demands(opts, sp);
@@ -976,21 +977,21 @@ mod tests {
         let s = MatchSettings::default();
         let d = s.basis_demand(&s.resolve(true).unwrap(), &Keywords).unwrap();
         assert_eq!((d.size, d.who.as_str(), d.key), (200, "kprime (default 200)", "kprime"));
-        // For a pair whose X cannot be a part: 128 (the default WKS's eigenpairs), unless the
-        // sizes ask for more or kprime is given; the baselines keep 200.
+        // For a pair whose X cannot be a part, with the default data: 128 (the default WKS's
+        // eigenpairs), unless the sizes ask for more or kprime is given; the baselines keep 200.
         let o = s.resolve(true).unwrap();
-        assert_eq!(s.basis_demand_for(&o, &Keywords, true).unwrap(), d);
-        let whole = s.basis_demand_for(&o, &Keywords, false).unwrap();
+        assert_eq!(s.basis_demand_for(&o, &Keywords, false).unwrap(), d);
+        let whole = s.basis_demand_for(&o, &Keywords, true).unwrap();
         assert_eq!((whole.size, whole.who.as_str()), (128, "kprime (default 128 for a whole X)"));
         let s = MatchSettings { zoomout_to: Some(150), ..Default::default() };
-        let d = s.basis_demand_for(&s.resolve(true).unwrap(), &Keywords, false).unwrap();
+        let d = s.basis_demand_for(&s.resolve(true).unwrap(), &Keywords, true).unwrap();
         assert_eq!((d.size, d.who.as_str(), d.key), (150, "zoomout_to=150", "zoomout_to"));
         for s in [
             MatchSettings { kprime: Some(150), ..Default::default() },
             MatchSettings { method: Some(Method::Fmap), ..Default::default() },
         ] {
             let o = s.resolve(true).unwrap();
-            assert_eq!(s.basis_demand_for(&o, &Keywords, false).unwrap(), s.basis_demand(&o, &Keywords).unwrap());
+            assert_eq!(s.basis_demand_for(&o, &Keywords, true).unwrap(), s.basis_demand(&o, &Keywords).unwrap());
         }
         let s = MatchSettings { kprime: Some(20), ..Default::default() };
         let e = s.basis_demand(&s.resolve(true).unwrap(), &Keywords).unwrap_err().to_string();
