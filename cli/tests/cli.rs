@@ -1906,9 +1906,14 @@ fn messages_name_what_the_user_gave() {
     // Shapes too small for the default pipeline: the error names the options to change and
     // values that work (another method when no option of the default one fits).
     for (nu, nv, needles) in [
-        (12, 10, &["--kprime (default 200)"][..]),
-        (10, 9, &["--kprime (default 200)", "--zoomout-to (default 110)"][..]),
-        (10, 6, &["--method fmap", "--kprime (default 200)", "--zoomout-to (default 110)", "size selection"][..]),
+        (12, 10, &["--kprime (default 128 for a whole X)"][..]),
+        (10, 9, &["--kprime (default 128 for a whole X)", "--zoomout-to (default 110)"][..]),
+        (
+            10,
+            6,
+            &["--method fmap", "--kprime (default 128 for a whole X)", "--zoomout-to (default 110)", "size selection"]
+                [..],
+        ),
     ] {
         let (v, f) = torus(nu, nv);
         let small = write_off(&d, &format!("T{}.off", nu * nv), v, f);
