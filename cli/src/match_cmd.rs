@@ -106,7 +106,6 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     let view = funcorr::viz::View::parse(&args.view)?;
     let size = parse_size(&args.size)?;
     // Options that ask for too few eigenpairs fail before any work.
-    settings.basis_demand(&opts, &Flags)?;
     let least = settings.basis_demand_for(&opts, &Flags, true)?;
     // The output directory is created (and checked writable) before any work; it is published at
     // the end, or removed when the run fails.

@@ -84,8 +84,10 @@ fn match_shapes<'py>(
     let mut o = options::Opts::new(options)?;
     let settings = options::match_settings(&mut o)?;
     let opts = settings.resolve(rich).map_err(options::library_error)?;
-    // Options that ask for too few eigenpairs fail before the shapes are read.
-    settings.basis_demand(&opts, &Keywords).map_err(options::library_error)?;
+    // Options that ask for too few eigenpairs fail before the shapes are read; the fewest
+    // eigenpairs per shape they may ask (the eigenpairs of this pair are known after the
+    // Laplacians: fewer where X cannot be a part, whose partial path reads them all).
+    let least = settings.basis_demand_for(&opts, &Keywords, true).map_err(options::library_error)?;
     let preparation_keys = ["laplacian", "cloud_neighbours", "knn", "vertex_weights", "sigma", "cache_dir"];
     let given: Vec<&str> = preparation_keys.iter().copied().filter(|k| o.has(k)).collect();
     let choice = laplacian_choice(&mut o)?;
@@ -94,9 +96,6 @@ fn match_shapes<'py>(
     let landmarks = o.take("landmarks").filter(|v| !v.is_none());
     o.finish()?;
     let (sx, sy) = (side(x, "X")?, side(y, "Y")?);
-    // The fewest eigenpairs per shape the options may ask (the eigenpairs of this pair are known
-    // after the Laplacians: fewer where X cannot be a part, whose partial path reads them all).
-    let least = settings.basis_demand_for(&opts, &Keywords, true).map_err(options::library_error)?;
     if let (Some(key), true) = (given.first(), matches!(sx, Side::Ready(_)) && matches!(sy, Side::Ready(_))) {
         return Err(value_error(
             key,
