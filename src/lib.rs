@@ -19,6 +19,7 @@
 //! assert!((basis.eigenvalues[1] - 2.0).abs() < 0.05); // l(l+1) for l = 1
 //! ```
 
+pub mod alloc;
 pub mod benchmark;
 pub mod cell_quadrature;
 pub(crate) mod cholesky;

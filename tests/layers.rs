@@ -7,6 +7,7 @@ use std::path::Path;
 /// Layer of every top-level module (ARCHITECTURE.md's table; inside a layer, the order in which
 /// modules may import each other, lowest first).
 const LAYERS: &[(&str, f64)] = &[
+    ("alloc", 0.0),
     ("error", 0.0),
     ("rng", 0.0),
     ("linalg", 0.0),
