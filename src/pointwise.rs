@@ -187,15 +187,32 @@ pub fn nearest_neighbors_near_rows(
                     q64[a * d + c] = col[rows[i]];
                 }
             }
+            let query_sq: Vec<f64> = q64.chunks_exact(d).map(|r| r.iter().fold(0.0, |s, v| s + v * v)).collect();
+            // Per cell: the queries centred on the cell's centre c (q − c in f64, then scaled
+            // in f32), κ = ‖q − c‖², the bound's factor and additive term.
             let mut q32 = vec![0.0f32; qn.div_ceil(QUERY_TILE) * QUERY_TILE * d];
-            for (x, &v) in q32.iter_mut().zip(&q64) {
-                *x = (scale.sigma * v) as f32;
-            }
-            let factor: Vec<f32> =
-                q64.chunks_exact(d).map(|r| scale.query(r.iter().fold(0.0, |s, v| s + v * v))).collect();
+            let (mut kappa, mut factor, mut extra) = (vec![0.0f32; qn], vec![0.0f32; qn], vec![0.0f32; qn]);
             let mut best_hi = vec![f32::INFINITY; qn];
             let mut cands: Vec<Vec<(f32, usize)>> = vec![Vec::new(); qn];
-            screen_cells(Screen { y: &cells_y, cells: near_cells, q: &q32, factor: &factor }, &mut best_hi, &mut cands);
+            for &cell in near_cells {
+                if cells_y.starts[cell] == cells_y.starts[cell + 1] {
+                    continue;
+                }
+                let centre = &cells_y.centres[cell * d..(cell + 1) * d];
+                for (a, (row, out)) in q64.chunks_exact(d).zip(q32.chunks_exact_mut(d)).enumerate() {
+                    let mut sq = 0.0;
+                    for ((x, &v), &c) in out.iter_mut().zip(row).zip(centre) {
+                        let t = v - c;
+                        *x = (scale.sigma * t) as f32;
+                        sq += t * t;
+                    }
+                    kappa[a] = (scale.sigma * scale.sigma * sq) as f32;
+                    factor[a] = scale.query(sq);
+                    extra[a] = scale.centred(sq, query_sq[a], cells_y.reach);
+                }
+                let screen = Screen { y: &cells_y, cell, q: &q32, kappa: &kappa, factor: &factor, extra: &extra };
+                screen_cells(screen, &mut best_hi, &mut cands);
+            }
             queries
                 .iter()
                 .enumerate()
@@ -229,10 +246,15 @@ struct CellBlocks {
     starts: Vec<usize>,
     rows: Vec<f64>,
     norms: Vec<f64>,
+    /// Each cell's centre c (the mean of its rows, f64, #cells × d) and, per padded row, the
+    /// screen's f32 strips of σ (r − c) and terms of ‖r − c‖ (a screen in centred coordinates).
+    centres: Vec<f64>,
     strips: Vec<f32>,
     len: Vec<f32>,
     norm: Vec<f32>,
     bound: Vec<f32>,
+    /// The largest ‖r‖ among the rows.
+    reach: f64,
     d: usize,
 }
 
@@ -299,31 +321,69 @@ impl CellBlocks {
             starts,
             rows,
             norms,
+            centres: Vec::new(),
             strips: Vec::new(),
             len: Vec::new(),
             norm: Vec::new(),
             bound: Vec::new(),
+            reach: 0.0,
             d,
         };
         Ok((blocks, largest))
     }
 
-    /// The f32 strips and the screen's terms, in the screen's units `scale`.
+    /// The cells' centres, the f32 strips of the centred rows and the screen's terms, in the
+    /// screen's units `scale`. Centring makes the screen's bound scale with the rows' spread
+    /// within a cell rather than their magnitude: where the rows carry a large common part
+    /// (the bijective polish's rows hold ≈ ‖Ψ_j‖ in one coordinate), the uncentred bound exceeded
+    /// the gaps between neighbouring rows and the screen kept nearly every row.
     fn screen_in(&mut self, scale: &crate::spatial::ScreenScale) {
         let d = self.d;
-        let mut strips = vec![0.0f32; self.rows.len()];
-        strips.par_chunks_mut(ROW_TILE * d).zip(self.rows.par_chunks(ROW_TILE * d)).for_each(|(strip, rows)| {
-            for (l, row) in rows.chunks_exact(d).enumerate() {
-                for (c, &v) in row.iter().enumerate() {
-                    strip[c * ROW_TILE + l] = (scale.sigma * v) as f32;
+        let cells = self.starts.len() - 1;
+        let mut centres = vec![0.0f64; cells * d];
+        centres.par_chunks_mut(d).enumerate().for_each(|(cell, centre)| {
+            let range = self.starts[cell]..self.starts[cell + 1];
+            let real: Vec<usize> = range.filter(|&t| self.order[t] != usize::MAX).collect();
+            for &t in &real {
+                for (c, &v) in centre.iter_mut().zip(&self.rows[t * d..(t + 1) * d]) {
+                    *c += v;
                 }
             }
+            if !real.is_empty() {
+                centre.iter_mut().for_each(|c| *c /= real.len() as f64);
+            }
         });
+        // Cells are whole strips (padded to ROW_TILE rows), so each strip has one centre.
+        let cell_of_strip: Vec<usize> = (0..cells)
+            .flat_map(|cell| std::iter::repeat_n(cell, (self.starts[cell + 1] - self.starts[cell]) / ROW_TILE))
+            .collect();
+        let mut strips = vec![0.0f32; self.rows.len()];
+        let mut centred_sq = vec![f64::INFINITY; self.order.len()];
+        strips
+            .par_chunks_mut(ROW_TILE * d)
+            .zip(self.rows.par_chunks(ROW_TILE * d))
+            .zip(centred_sq.par_chunks_mut(ROW_TILE))
+            .zip(cell_of_strip.par_iter())
+            .for_each(|(((strip, rows), sq), &cell)| {
+                let centre = &centres[cell * d..(cell + 1) * d];
+                for (l, row) in rows.chunks_exact(d).enumerate() {
+                    let mut s = 0.0;
+                    for (c, (&v, &m)) in row.iter().zip(centre).enumerate() {
+                        let t = v - m;
+                        strip[c * ROW_TILE + l] = (scale.sigma * t) as f32;
+                        s += t * t;
+                    }
+                    sq[l] = s;
+                }
+            });
         let terms: Vec<(f32, f32, f32)> = self
             .norms
             .iter()
-            .map(|&sq| if sq.is_finite() { scale.reference(sq, true) } else { (0.0, f32::MAX, 0.0) })
+            .zip(&centred_sq)
+            .map(|(&sq, &c)| if sq.is_finite() { scale.reference(c, true) } else { (0.0, f32::MAX, 0.0) })
             .collect();
+        self.reach = self.norms.iter().filter(|v| v.is_finite()).fold(0.0f64, |a, &b| a.max(b)).sqrt();
+        self.centres = centres;
         self.strips = strips;
         self.len = terms.iter().map(|t| t.0).collect();
         self.norm = terms.iter().map(|t| t.1).collect();
@@ -331,16 +391,19 @@ impl CellBlocks {
     }
 }
 
-/// One screen of [`nearest_neighbors_near_rows`]: the cells `cells` of Y against the query rows
-/// `q` (scaled, f32, row-major, d values per row, padded with zero rows to a multiple of
-/// [`QUERY_TILE`]), `factor` the bound's factor of each real query
-/// ([`crate::spatial::ScreenScale::query`]).
+/// One screen of [`nearest_neighbors_near_rows`]: the cell `cell` of Y against the query rows
+/// `q` centred on the cell's centre c (q − c, scaled, f32, row-major, d values per row, padded
+/// with zero rows to a multiple of [`QUERY_TILE`]); per real query κ = σ² ‖q − c‖² (`kappa`),
+/// the bound's factor of σ ‖r − c‖ ([`crate::spatial::ScreenScale::query`] of ‖q − c‖²) and its
+/// additive term ([`crate::spatial::ScreenScale::centred`]).
 #[derive(Clone, Copy)]
 struct Screen<'a> {
     y: &'a CellBlocks,
-    cells: &'a [usize],
+    cell: usize,
     q: &'a [f32],
+    kappa: &'a [f32],
     factor: &'a [f32],
+    extra: &'a [f32],
 }
 
 crate::linalg::at_vector_width! {
@@ -349,16 +412,17 @@ crate::linalg::at_vector_width! {
 }
 
 /// The single-precision screen of the restricted search (as [`crate::spatial`]'s exact search
-/// screens, with the same bound): for every query, the smallest upper bound `best_hi` of its
-/// distance ‖r_j‖² − 2 q·r_j over the rows of the cells, and in `cands` (lower bound, padded row)
+/// screens, with its bound in coordinates centred on the cell): for every query, the smallest
+/// upper bound `best_hi` of its squared distance ‖q − r_j‖² = κ + ‖r_j − c‖² − 2 (q − c)·(r_j − c)
+/// over the rows of the cells screened so far, and in `cands` (lower bound, padded row)
 /// of every row whose lower bound does not exceed it (a superset of the rows that can be nearest;
 /// the list is pruned as the upper bound falls). A register tile of [`QUERY_TILE`] queries ×
 /// [`ROW_TILE`] rows is accumulated over all d columns, vectorized across the rows.
 #[inline(always)]
 fn screen_cells_generic(screen: Screen, best_hi: &mut [f32], cands: &mut [Vec<(f32, usize)>]) {
-    let Screen { y, cells, q, factor } = screen;
+    let Screen { y, cell, q, kappa, factor, extra } = screen;
     let (d, qn) = (y.d, factor.len());
-    for &cell in cells {
+    {
         for t0 in (y.starts[cell]..y.starts[cell + 1]).step_by(ROW_TILE) {
             // One strip of ROW_TILE rows × d (in L1 while every query passes over it).
             let strip = &y.strips[t0 * d..(t0 + ROW_TILE) * d];
@@ -378,19 +442,23 @@ fn screen_cells_generic(screen: Screen, best_hi: &mut [f32], cands: &mut [Vec<(f
                     }
                 }
                 for (a, dots) in acc.iter().enumerate().take(qn - g0) {
-                    let (i, sc) = (g0 + a, factor[g0 + a]);
+                    let (i, sc, k, x) = (g0 + a, factor[g0 + a], kappa[g0 + a], extra[g0 + a]);
                     // The bounds as `spatial`'s screen forms them (its error analysis covers
-                    // their rounding); compare-and-select folds (`minps`, `maxps`).
-                    let e: [f32; ROW_TILE] = std::array::from_fn(|l| rn[l] - 2.0 * dots[l]);
-                    let hi =
-                        (0..ROW_TILE)
-                            .map(|l| e[l] + sc * rl[l] + rb[l])
-                            .fold(f32::INFINITY, |m, v| if v < m { v } else { m });
+                    // their rounding; κ's and the f64 check's in `x`); compare-and-select folds
+                    // (`minps`, `maxps`).
+                    let e: [f32; ROW_TILE] = std::array::from_fn(|l| (k + rn[l]) - 2.0 * dots[l]);
+                    let hi = (0..ROW_TILE).map(|l| e[l] + sc * rl[l] + rb[l] + x).fold(f32::INFINITY, |m, v| {
+                        if v < m {
+                            v
+                        } else {
+                            m
+                        }
+                    });
                     if hi < best_hi[i] {
                         best_hi[i] = hi;
                     }
                     let h = best_hi[i];
-                    let lo: [f32; ROW_TILE] = std::array::from_fn(|l| e[l] - sc * rl[l] - rb[l]);
+                    let lo: [f32; ROW_TILE] = std::array::from_fn(|l| e[l] - sc * rl[l] - rb[l] - x);
                     let margin = lo.iter().fold(f32::NEG_INFINITY, |m, &v| if h - v > m { h - v } else { m });
                     if margin < 0.0 {
                         continue;
@@ -933,8 +1001,16 @@ pub(crate) mod tests {
         let y_cells: Vec<usize> = (0..m).step_by(13).collect();
         let coarse = CoarseMap { x: &px, y: &py, samples: &samples, images: &images, y_cells: &y_cells };
         let all: Vec<usize> = (0..n).collect();
-        for magnitude in [1e-30, 1e-3, 1.0, 1e20, 1e29] {
-            let (r, q) = (&r0 * magnitude, &q0 * magnitude);
+        // A large part common to every row and query (offset): the bijective polish's rows carry
+        // ≈ ‖Ψ_j‖ in one coordinate; the screen in centred coordinates must still keep the f64
+        // argmin of the uncentred ‖r‖² − 2 q·r.
+        for (magnitude, offset) in
+            [(1e-30, 0.0), (1e-3, 0.0), (1.0, 0.0), (1.0, 1e4), (1e20, 0.0), (1e20, 300.0), (1e29, 0.0)]
+        {
+            let shift = |a: &Mat<f64>| {
+                Mat::from_fn(a.nrows(), d, |i, c| magnitude * (a[(i, c)] + if c == 0 { offset } else { 0.0 }))
+            };
+            let (r, q) = (shift(&r0), shift(&q0));
             let brute: Vec<usize> = (0..n)
                 .map(|i| {
                     let mut best = (f64::INFINITY, usize::MAX);
@@ -953,7 +1029,7 @@ pub(crate) mod tests {
                 let near = crate::linalg::with_widest(widest, || {
                     nearest_neighbors_near_rows(r.as_ref(), q.as_ref(), &coarse, y_cells.len(), &all).unwrap()
                 });
-                assert_eq!(near, brute, "magnitude {magnitude}, width {widest}");
+                assert_eq!(near, brute, "magnitude {magnitude}, offset {offset}, width {widest}");
             }
         }
     }

@@ -455,6 +455,20 @@ impl ScreenScale {
         (len, (sigma * sigma * norm) as f32, bound)
     }
 
+    /// The additive term of a screen in coordinates centred on c (rows r − c, queries q − c,
+    /// the distance ‖q − r‖² formed as κ + ‖r − c‖² − 2 (q − c)·(r − c), κ = ‖q − c‖²): 32 u₃₂ κ
+    /// for the rounding of κ and of the sums it joins (the rows' ‖r‖² term of
+    /// [`ScreenScale::reference`], for κ), and twice the rounding bound (d + 2) u₆₄ (R² + 2 ‖q‖ R)
+    /// of the f64 check's ‖r‖² − 2 q·r, doubled, so that the check's f64 argmin is kept even where
+    /// the centred bound is far below the f64 rounding of the uncentred values. From κ
+    /// (`centred_sq`), ‖q‖² (`query_sq`) and R, the largest ‖r‖ searched, all f64 and unscaled;
+    /// in the screen's units.
+    pub(crate) fn centred(&self, centred_sq: f64, query_sq: f64, reach: f64) -> f32 {
+        let (s, u64) = (self.sigma * self.sigma, f64::EPSILON / 2.0);
+        let check = 4.0 * (self.d as f64 + 2.0) * u64 * (reach * reach + 2.0 * query_sq.sqrt() * reach);
+        (SLACK * s * (32.0 * Self::U * centred_sq + check)) as f32
+    }
+
     /// A query row's factor of σ ‖r_j‖ in the bound, from its squared norm `sq` (f64,
     /// unscaled): 2 ε ‖q‖ for the products and 16 u₃₂ ‖q‖ for the f32 evaluation of the bounds,
     /// doubled, and 4 √d 2⁻¹⁴⁹ for entries below f32's normal range (scaled units).
