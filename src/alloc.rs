@@ -3,15 +3,15 @@
 //! Why: the pipeline's large arrays (the fits' K × K normal equations, K = k², 50 MB at k = 50;
 //! the bases, n × k; the restricted searches' blocks) are allocated fresh, and every 4 KiB page
 //! of fresh memory costs a page fault at first touch. On the 2-core VMs we measure on that cost
-//! is 1.6–5 µs per page (BENCHMARKS.md, "Fresh memory is expensive on this VM"): zeroing the
-//! 50 MB matrix of the k = 50 fit took ≈ 20 ms of its 120 ms. With `madvise(MADV_HUGEPAGE)` the
+//! is 1.6–5 µs per page (BENCHMARKS.md, "Fresh memory is expensive on this VM"): filling the
+//! 50 MB normal equations of the k = 50 fit with zeros took ≈ 20–50 ms of their 120 ms. With `madvise(MADV_HUGEPAGE)` the
 //! kernel maps 2 MiB pages where it can (`/sys/kernel/mm/transparent_hugepage/enabled` set to
 //! `madvise` or `always`), one fault per 512 small pages. The arithmetic is unchanged, so every
 //! result is bit for bit the same with or without it.
 //!
-//! Allocations of at least [`HUGE_THRESHOLD`] bytes are mapped directly (`mmap`, aligned to
-//! 2 MiB, `madvise(MADV_HUGEPAGE)`, released by `munmap`); smaller ones go to the system
-//! allocator. Declared by the front ends (`funcorr` CLI, the Python module) with
+//! Allocations of at least [`HUGE_THRESHOLD`] bytes (32 MiB) are mapped directly (`mmap`,
+//! aligned to 2 MiB, `madvise(MADV_HUGEPAGE)`, released by `munmap`); smaller ones go to the
+//! system allocator. Declared by the front ends (`funcorr` CLI, the Python module) with
 //! `#[global_allocator] static ALLOC: funcorr::alloc::HugePageAlloc = funcorr::alloc::HugePageAlloc;`.
 //! On other systems it is the system allocator. (A wrapper of a few lines rather than jemalloc or
 //! mimalloc: those are C builds that would lengthen every clean build, and their huge-page
@@ -19,8 +19,11 @@
 
 use std::alloc::{GlobalAlloc, Layout, System};
 
-/// Allocations of at least this many bytes (4 MiB) are backed by huge pages.
-pub const HUGE_THRESHOLD: usize = 4 << 20;
+/// Allocations of at least this many bytes (32 MiB) are backed by huge pages: glibc's largest
+/// mmap threshold, so the allocations below it keep glibc's reuse of freed heap memory (no fault
+/// at all, where a 4 MiB threshold mapped every mid-size temporary afresh), and those above it,
+/// which glibc maps fresh every time anyway, fault once per 2 MiB instead of once per 4 KiB.
+pub const HUGE_THRESHOLD: usize = 32 << 20;
 
 /// The huge page size the mappings are aligned to (2 MiB, x86-64 and aarch64 with 4 KiB pages).
 #[cfg(target_os = "linux")]
