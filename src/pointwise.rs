@@ -74,7 +74,9 @@ pub fn nearest_neighbors_near(
 }
 
 /// [`nearest_neighbors_near`] for the query rows `rows` only (vertex ids of X, any order,
-/// repeats allowed): returns the image of each, in the order of `rows`. Costs O(|rows| · cells ·
+/// repeats allowed): returns the image of each, in the order of `rows`. The query may have fewer
+/// columns than the reference (d_q ≤ d): its missing columns are zero, so a caller need not copy
+/// an n × d_q matrix to append them. Costs O(|rows| · cells ·
 /// m / #cells · d) plus the cells of Y; used where a point map is needed on part of X only (the
 /// probes of large pairs score a candidate around samples, [`crate::refine::metric_distortion_around`]).
 ///
@@ -113,13 +115,14 @@ pub fn nearest_neighbors_near_rows(
     if rows.iter().any(|&i| i >= n) {
         return Err(Error::invalid("rows", format!("a query row id is ≥ n = {n}")));
     }
-    if query.ncols() != reference.ncols() {
+    if query.ncols() > reference.ncols() {
         return Err(Error::invalid(
             "embedding",
             format!("query has dimension {} but reference has {}", query.ncols(), reference.ncols()),
         ));
     }
-    let d = query.ncols();
+    // Query columns beyond its own are zero (`dq` ≤ d).
+    let (d, dq) = (reference.ncols(), query.ncols());
     let points = |ids: &[usize], p: &[[f64; 3]]| ids.iter().map(|&v| p[v]).collect::<Vec<[f64; 3]>>();
     let centres = points(coarse.y_cells, coarse.y);
     // Members of every cell of X (around a sample) and of Y (around a centre), ascending.
@@ -152,7 +155,7 @@ pub fn nearest_neighbors_near_rows(
     // [−1, 1] (`spatial::ScreenScale`).
     let usable = |v: f64| v.is_finite() && v.abs() <= crate::spatial::MAX_EMBEDDING;
     let mut largest = 0.0f64;
-    for c in 0..d {
+    for c in 0..dq {
         let col = query.col(c);
         for &i in rows {
             let v = col[i];
@@ -181,7 +184,7 @@ pub fn nearest_neighbors_near_rows(
             // The queries' rows, row-major: in f64, and scaled in f32 padded with zero rows to
             // whole tiles; each query's factor of the screen's bound.
             let mut q64 = vec![0.0f64; qn * d];
-            for c in 0..d {
+            for c in 0..dq {
                 let col = query.col(c);
                 for (a, &i) in queries.iter().enumerate() {
                     q64[a * d + c] = col[rows[i]];

@@ -538,6 +538,11 @@ pub fn axiomatic_pipeline(
         (true, Some(c)) => c,
         _ => c_fit.clone(),
     };
+    // The fits' data, the probes and the search are not read by the final refinement: released
+    // before it (at 10⁶ vertices F and G hold ≈ 0.3 GB each, and the polish sets the peak).
+    drop(probed);
+    drop(search);
+    drop((fx, gy));
     let (c_yx, map_xy, near_samples) = refine_from(x, y, c_start, &c_fit, p, &near_positions, &pins, &mut stages)?;
     Ok(AxiomaticResult { map_xy, c_yx, c_fit, candidates, chosen, stages, near_samples, correction })
 }

@@ -122,9 +122,27 @@ fn bijective_embeddings(
     rows: &[usize],
     refs: &[usize],
 ) -> (Mat<f64>, Mat<f64>) {
+    let k = c_yx.nrows();
+    let reference = bijective_reference(psi, c_yx, c_xy, w, refs, 1.0);
+    let mut query = Mat::<f64>::zeros(rows.len(), k + 1);
+    gather_rows_into(query.as_mut().subcols_mut(0, k), phi.subcols(0, k), rows, 0..k, 2.0);
+    (reference, query)
+}
+
+/// The reference rows [b_j, c_j] of [`bijective_embeddings`] for the rows `refs` of Y (|refs| ×
+/// (k + 1)), times `scale` (a power of two keeps every distance's comparisons exact: ×½ pairs
+/// them with the query rows [Φ_i, 0] instead of [2 Φ_i, 0], all distances ×¼).
+fn bijective_reference(
+    psi: MatRef<f64>,
+    c_yx: MatRef<f64>,
+    c_xy: MatRef<f64>,
+    w: f64,
+    refs: &[usize],
+    scale: f64,
+) -> Mat<f64> {
     use rayon::prelude::*;
     let k = c_yx.nrows();
-    let (phi, psi) = (phi.subcols(0, k), psi.subcols(0, k));
+    let psi = psi.subcols(0, k);
     // [C_yxᵀ | C_xy | B] (k × 3k): one product per block of Ψ's rows gives all three.
     let ops = Mat::from_fn(k, 3 * k, |a, c| match c / k {
         0 => c_yx[(c, a)],
@@ -149,9 +167,10 @@ fn bijective_embeddings(
     for j in 0..refs.len() {
         reference[(j, k)] = (reference[(j, k)] + shift).max(0.0).sqrt();
     }
-    let mut query = Mat::<f64>::zeros(rows.len(), k + 1);
-    gather_rows_into(query.as_mut().subcols_mut(0, k), phi, rows, 0..k, 2.0);
-    (reference, query)
+    if scale != 1.0 {
+        reference.as_mut().par_col_chunks_mut(1).for_each(|col| col.col_mut(0).iter_mut().for_each(|v| *v *= scale));
+    }
+    reference
 }
 
 /// [`bijective_map`] of every vertex of X searched near the map of the samples `sx` (found coarse
@@ -168,9 +187,12 @@ fn bijective_map_near(
     near: &Near,
 ) -> Result<Vec<usize>> {
     let (all_x, all_y): (Vec<usize>, Vec<usize>) = ((0..phi.nrows()).collect(), (0..psi.nrows()).collect());
-    let (reference, query) = bijective_embeddings(phi, psi, c_yx, c_xy, w, &all_x, &all_y);
-    let images = sample_images_near(reference.as_ref(), query.as_ref(), sx, y_cells, near)?;
-    rows_near(reference.as_ref(), query.as_ref(), near, (sx, &images, y_cells), &all_x)
+    // The query rows [Φ_i, 0] are Φ's first k columns, read in place (the restricted search
+    // takes the missing column as zero): no n × (k + 1) copy; the reference ×½ to match.
+    let reference = bijective_reference(psi, c_yx, c_xy, w, &all_y, 0.5);
+    let query = phi.subcols(0, c_yx.nrows());
+    let images = sample_images_near(reference.as_ref(), query, sx, y_cells, near)?;
+    rows_near(reference.as_ref(), query, near, (sx, &images, y_cells), &all_x)
 }
 
 /// Pins ([`bijective_polish_pinned`]) as positions in the samples of both shapes: (position in

@@ -232,9 +232,10 @@ pub(super) fn sample_images_near(
     if sx.iter().any(|&i| i >= n) || y_cells.iter().any(|&j| j >= m) {
         return Err(Error::invalid("samples", "a vertex id is out of range"));
     }
-    let d = query.ncols();
+    // (Query columns beyond its own are zero, as in `nearest_neighbors_near_rows`.)
+    let (d, dq) = (reference.ncols(), query.ncols());
     let coarse_refs = Mat::from_fn(y_cells.len(), d, |t, a| reference[(y_cells[t], a)]);
-    let queries = Mat::from_fn(sx.len(), d, |s, a| query[(sx[s], a)]);
+    let queries = Mat::from_fn(sx.len(), d, |s, a| if a < dq { query[(sx[s], a)] } else { 0.0 });
     let coarse: Vec<usize> =
         nearest_neighbors(coarse_refs.as_ref(), queries.as_ref())?.into_iter().map(|t| y_cells[t]).collect();
     let map = CoarseMap { x: near.x, y: near.y, samples: sx, images: &coarse, y_cells };
