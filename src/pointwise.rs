@@ -975,6 +975,29 @@ pub(crate) mod tests {
     /// smallest vertex id) at every magnitude and vector width: with cells covering all of Y it
     /// equals the brute-force search written out, on queries in tight clusters of rows (many
     /// candidates to tell apart), exact copies of rows and a tie.
+    /// A query with fewer columns than the reference is searched as if its missing columns were
+    /// zero; one with more is an error.
+    #[test]
+    fn restricted_query_columns_beyond_its_own_are_zero() {
+        let (m, n, d) = (200, 90, 5);
+        let mut rng = crate::spectral::Normal::new(4);
+        let r = Mat::from_fn(m, d, |_, _| rng.sample());
+        let q = Mat::from_fn(n, d, |_, c| if c + 1 < d { rng.sample() } else { 0.0 });
+        let mut pos = |count: usize| -> Vec<[f64; 3]> {
+            (0..count).map(|_| [rng.sample(), rng.sample(), rng.sample()]).collect()
+        };
+        let (px, py) = (pos(n), pos(m));
+        let samples: Vec<usize> = (0..n).step_by(9).collect();
+        let images: Vec<usize> = samples.iter().map(|&s| (s * 3) % m).collect();
+        let y_cells: Vec<usize> = (0..m).step_by(11).collect();
+        let coarse = CoarseMap { x: &px, y: &py, samples: &samples, images: &images, y_cells: &y_cells };
+        let all: Vec<usize> = (0..n).collect();
+        let full = nearest_neighbors_near_rows(r.as_ref(), q.as_ref(), &coarse, 3, &all).unwrap();
+        let short = nearest_neighbors_near_rows(r.as_ref(), q.as_ref().subcols(0, d - 1), &coarse, 3, &all).unwrap();
+        assert_eq!(short, full);
+        assert!(nearest_neighbors_near_rows(r.as_ref().subcols(0, d - 1), q.as_ref(), &coarse, 3, &all).is_err());
+    }
+
     #[test]
     fn restricted_screen_keeps_the_exact_argmin_at_every_magnitude() {
         let (m, n, d) = (300, 120, 20);

@@ -397,6 +397,29 @@ mod tests {
             .sum()
     }
 
+    /// The restricted polish (query rows Φ read in place, the reference ×½) searching every cell
+    /// of Y gives the exact search's map on the full embeddings ([2 Φ_i, 0] and [b_j, c_j]).
+    #[test]
+    fn the_restricted_map_over_every_cell_is_the_exact_map() {
+        let mut rng = crate::rng::Normal::new(8);
+        let (n, m, k) = (400, 500, 6);
+        let mut g = |r: usize, c: usize, s: f64| Mat::from_fn(r, c, |_, _| s * rng.sample());
+        let (phi, psi, c_yx) = (g(n, k + 3, 1.0), g(m, k + 3, 1.0), g(k, k, 1.0));
+        let c_xy = c_yx.transpose().to_owned() + g(k, k, 0.2);
+        let (px, py) = (g(n, 3, 1.0), g(m, 3, 1.0));
+        let pos = |p: &Mat<f64>| (0..p.nrows()).map(|i| [p[(i, 0)], p[(i, 1)], p[(i, 2)]]).collect::<Vec<_>>();
+        let (px, py) = (pos(&px), pos(&py));
+        let (sx, y_cells): (Vec<usize>, Vec<usize>) = ((0..n).step_by(20).collect(), (0..m).step_by(25).collect());
+        let near = Near { x: &px, y: &py, cells: y_cells.len() };
+        for w in [1.0, 0.0] {
+            let exact = bijective_map(phi.as_ref(), psi.as_ref(), c_yx.as_ref(), c_xy.as_ref(), w, None, None).unwrap();
+            let restricted =
+                bijective_map_near(phi.as_ref(), psi.as_ref(), c_yx.as_ref(), c_xy.as_ref(), w, &sx, &y_cells, &near)
+                    .unwrap();
+            assert_eq!(restricted, exact, "w = {w}");
+        }
+    }
+
     #[test]
     fn the_embeddings_distance_is_the_cost_up_to_a_constant_per_query() {
         let mut rng = crate::rng::Normal::new(5);
