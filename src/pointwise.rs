@@ -345,15 +345,15 @@ impl CellBlocks {
         let cells = self.starts.len() - 1;
         let mut centres = vec![0.0f64; cells * d];
         centres.par_chunks_mut(d).enumerate().for_each(|(cell, centre)| {
-            let range = self.starts[cell]..self.starts[cell + 1];
-            let real: Vec<usize> = range.filter(|&t| self.order[t] != usize::MAX).collect();
-            for &t in &real {
+            let mut real = 0usize;
+            for t in (self.starts[cell]..self.starts[cell + 1]).filter(|&t| self.order[t] != usize::MAX) {
                 for (c, &v) in centre.iter_mut().zip(&self.rows[t * d..(t + 1) * d]) {
                     *c += v;
                 }
+                real += 1;
             }
-            if !real.is_empty() {
-                centre.iter_mut().for_each(|c| *c /= real.len() as f64);
+            if real > 0 {
+                centre.iter_mut().for_each(|c| *c /= real as f64);
             }
         });
         // Cells are whole strips (padded to ROW_TILE rows), so each strip has one centre.
@@ -425,56 +425,49 @@ crate::linalg::at_vector_width! {
 fn screen_cells_generic(screen: Screen, best_hi: &mut [f32], cands: &mut [Vec<(f32, usize)>]) {
     let Screen { y, cell, q, kappa, factor, extra } = screen;
     let (d, qn) = (y.d, factor.len());
-    {
-        for t0 in (y.starts[cell]..y.starts[cell + 1]).step_by(ROW_TILE) {
-            // One strip of ROW_TILE rows × d (in L1 while every query passes over it).
-            let strip = &y.strips[t0 * d..(t0 + ROW_TILE) * d];
-            let rn: &[f32; ROW_TILE] = y.norm[t0..t0 + ROW_TILE].try_into().unwrap();
-            let rl: &[f32; ROW_TILE] = y.len[t0..t0 + ROW_TILE].try_into().unwrap();
-            let rb: &[f32; ROW_TILE] = y.bound[t0..t0 + ROW_TILE].try_into().unwrap();
-            for g0 in (0..qn).step_by(QUERY_TILE) {
-                let tile: [&[f32]; QUERY_TILE] = std::array::from_fn(|a| &q[(g0 + a) * d..(g0 + a + 1) * d]);
-                let mut acc = [[0.0f32; ROW_TILE]; QUERY_TILE];
-                for (c, col) in strip.chunks_exact(ROW_TILE).enumerate() {
-                    let col: &[f32; ROW_TILE] = col.try_into().unwrap();
-                    for (sums, row) in acc.iter_mut().zip(&tile) {
-                        let qc = row[c];
-                        for l in 0..ROW_TILE {
-                            sums[l] += qc * col[l];
-                        }
+    for t0 in (y.starts[cell]..y.starts[cell + 1]).step_by(ROW_TILE) {
+        // One strip of ROW_TILE rows × d (in L1 while every query passes over it).
+        let strip = &y.strips[t0 * d..(t0 + ROW_TILE) * d];
+        let rn: &[f32; ROW_TILE] = y.norm[t0..t0 + ROW_TILE].try_into().unwrap();
+        let rl: &[f32; ROW_TILE] = y.len[t0..t0 + ROW_TILE].try_into().unwrap();
+        let rb: &[f32; ROW_TILE] = y.bound[t0..t0 + ROW_TILE].try_into().unwrap();
+        for g0 in (0..qn).step_by(QUERY_TILE) {
+            let tile: [&[f32]; QUERY_TILE] = std::array::from_fn(|a| &q[(g0 + a) * d..(g0 + a + 1) * d]);
+            let mut acc = [[0.0f32; ROW_TILE]; QUERY_TILE];
+            for (c, col) in strip.chunks_exact(ROW_TILE).enumerate() {
+                let col: &[f32; ROW_TILE] = col.try_into().unwrap();
+                for (sums, row) in acc.iter_mut().zip(&tile) {
+                    let qc = row[c];
+                    for l in 0..ROW_TILE {
+                        sums[l] += qc * col[l];
                     }
                 }
-                for (a, dots) in acc.iter().enumerate().take(qn - g0) {
-                    let (i, sc, k, x) = (g0 + a, factor[g0 + a], kappa[g0 + a], extra[g0 + a]);
-                    // The bounds as `spatial`'s screen forms them (its error analysis covers
-                    // their rounding; κ's and the f64 check's in `x`); compare-and-select folds
-                    // (`minps`, `maxps`).
-                    let e: [f32; ROW_TILE] = std::array::from_fn(|l| (k + rn[l]) - 2.0 * dots[l]);
-                    let hi = (0..ROW_TILE).map(|l| e[l] + sc * rl[l] + rb[l] + x).fold(f32::INFINITY, |m, v| {
-                        if v < m {
-                            v
-                        } else {
-                            m
-                        }
-                    });
-                    if hi < best_hi[i] {
-                        best_hi[i] = hi;
+            }
+            for (a, dots) in acc.iter().enumerate().take(qn - g0) {
+                let (i, sc, k, x) = (g0 + a, factor[g0 + a], kappa[g0 + a], extra[g0 + a]);
+                // The bounds as `spatial`'s screen forms them (its error analysis covers
+                // their rounding; κ's and the f64 check's in `x`); compare-and-select folds
+                // (`minps`, `maxps`).
+                let e: [f32; ROW_TILE] = std::array::from_fn(|l| (k + rn[l]) - 2.0 * dots[l]);
+                let min = |m: f32, v: f32| if v < m { v } else { m };
+                let hi = (0..ROW_TILE).map(|l| e[l] + sc * rl[l] + rb[l] + x).fold(f32::INFINITY, min);
+                if hi < best_hi[i] {
+                    best_hi[i] = hi;
+                }
+                let h = best_hi[i];
+                let lo: [f32; ROW_TILE] = std::array::from_fn(|l| e[l] - sc * rl[l] - rb[l] - x);
+                let margin = lo.iter().fold(f32::NEG_INFINITY, |m, &v| if h - v > m { h - v } else { m });
+                if margin < 0.0 {
+                    continue;
+                }
+                let list = &mut cands[i];
+                for (l, &v) in lo.iter().enumerate() {
+                    if v <= h {
+                        list.push((v, t0 + l));
                     }
-                    let h = best_hi[i];
-                    let lo: [f32; ROW_TILE] = std::array::from_fn(|l| e[l] - sc * rl[l] - rb[l] - x);
-                    let margin = lo.iter().fold(f32::NEG_INFINITY, |m, &v| if h - v > m { h - v } else { m });
-                    if margin < 0.0 {
-                        continue;
-                    }
-                    let list = &mut cands[i];
-                    for (l, &v) in lo.iter().enumerate() {
-                        if v <= h {
-                            list.push((v, t0 + l));
-                        }
-                    }
-                    if list.len() >= 64 {
-                        list.retain(|c| c.0 <= h);
-                    }
+                }
+                if list.len() >= 64 {
+                    list.retain(|c| c.0 <= h);
                 }
             }
         }
@@ -968,13 +961,6 @@ pub(crate) mod tests {
         (px, py, truth, query, reference)
     }
 
-    /// The search near a coarse map equals the exact search when the coarse map is right (a
-    /// 2562-vertex sphere and a renumbered copy, 6-D embeddings with noise, 100 samples, 8
-    /// cells), and differs from it when the coarse map is wrong (so the restriction is real).
-    /// The restricted search's single-precision screen keeps the exact f64 argmin (ties to the
-    /// smallest vertex id) at every magnitude and vector width: with cells covering all of Y it
-    /// equals the brute-force search written out, on queries in tight clusters of rows (many
-    /// candidates to tell apart), exact copies of rows and a tie.
     /// A query with fewer columns than the reference is searched as if its missing columns were
     /// zero; one with more is an error.
     #[test]
@@ -998,6 +984,13 @@ pub(crate) mod tests {
         assert!(nearest_neighbors_near_rows(r.as_ref().subcols(0, d - 1), q.as_ref(), &coarse, 3, &all).is_err());
     }
 
+    /// The search near a coarse map equals the exact search when the coarse map is right (a
+    /// 2562-vertex sphere and a renumbered copy, 6-D embeddings with noise, 100 samples, 8
+    /// cells), and differs from it when the coarse map is wrong (so the restriction is real).
+    /// The restricted search's single-precision screen keeps the exact f64 argmin (ties to the
+    /// smallest vertex id) at every magnitude and vector width: with cells covering all of Y it
+    /// equals the brute-force search written out, on queries in tight clusters of rows (many
+    /// candidates to tell apart), exact copies of rows and a tie.
     #[test]
     fn restricted_screen_keeps_the_exact_argmin_at_every_magnitude() {
         let (m, n, d) = (300, 120, 20);
