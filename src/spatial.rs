@@ -359,8 +359,9 @@ struct Chunk<'a> {
     ref_bound: &'a [f32],
 }
 
-/// Independent lanes of the screen's f32 test (one AVX-512 register).
-const LANES32: usize = 16;
+/// Queries screened together, their bounds in registers (four AVX-512 vectors of f32, eight of
+/// AVX2: enough independent `minps` chains to hide their latency).
+const SCREEN_ROWS: usize = 64;
 
 crate::linalg::at_vector_width! {
     /// The screen of one chunk: lowers every query's best upper bound `best_hi` over the chunk,
@@ -372,45 +373,60 @@ crate::linalg::at_vector_width! {
 
 #[inline(always)]
 fn screen_generic(chunk: Chunk, scale: &[f32], best_hi: &mut [f32], cands: &mut [Vec<(f32, usize)>]) {
-    let Chunk { dots, c0, w, ref_norm, ref_len, ref_bound } = chunk;
     let len = best_hi.len();
+    let full = len - len % SCREEN_ROWS;
+    for i0 in (0..full).step_by(SCREEN_ROWS) {
+        let sc: &[f32; SCREEN_ROWS] = scale[i0..i0 + SCREEN_ROWS].try_into().unwrap();
+        let hi: &mut [f32; SCREEN_ROWS] = (&mut best_hi[i0..i0 + SCREEN_ROWS]).try_into().unwrap();
+        screen_rows(chunk, i0, sc, hi, &mut cands[i0..i0 + SCREEN_ROWS]);
+    }
+    // The last rows, one at a time (the same bounds, in the same order).
+    for i in full..len {
+        let (sc, hi) = (&[scale[i]], (&mut best_hi[i..=i]).try_into().unwrap());
+        screen_rows::<1>(chunk, i, sc, hi, &mut cands[i..=i]);
+    }
+}
+
+/// [`screen_generic`] on the R queries i0 … i0 + R − 1, their bounds held in registers while
+/// every column of the chunk passes (two passes: the smallest upper bound, then the
+/// candidates; the R × w products stay in cache between them).
+#[inline(always)]
+fn screen_rows<const R: usize>(
+    chunk: Chunk,
+    i0: usize,
+    sc: &[f32; R],
+    best_hi: &mut [f32; R],
+    cands: &mut [Vec<(f32, usize)>],
+) {
+    let Chunk { dots, c0, w, ref_norm, ref_len, ref_bound } = chunk;
+    let col = |j: usize| -> &[f32; R] { dots.col_as_slice(j)[i0..i0 + R].try_into().unwrap() };
     // Pass 1 (branch-free, vectorized): the smallest upper bound of every query over the chunk.
+    let mut hi = *best_hi;
     for j in 0..w {
-        let col = &dots.col_as_slice(j)[..len];
-        let (rn, rl, rb) = (ref_norm[j], ref_len[j], ref_bound[j]);
-        for ((hi, &dot), &sc) in best_hi.iter_mut().zip(col).zip(scale) {
+        let (dot, rn, rl, rb) = (col(j), ref_norm[j], ref_len[j], ref_bound[j]);
+        for l in 0..R {
             // A compare-and-select, not f32::min: it compiles to `minps` (the values are
             // finite: the caller scales them into [−1, 1]), f32::min's NaN rule to scalar code.
-            let v = (rn - 2.0 * dot) + sc * rl + rb;
-            *hi = if v < *hi { v } else { *hi };
+            let v = (rn - 2.0 * dot[l]) + sc[l] * rl + rb;
+            hi[l] = if v < hi[l] { v } else { hi[l] };
         }
     }
-    // Pass 2: the candidates, lower bound ≤ best upper bound. A column is scanned one query at
-    // a time only when some query keeps it (a vectorized test first).
+    *best_hi = hi;
+    // Pass 2: the candidates, lower bound ≤ best upper bound; the queries of a column are
+    // visited one at a time only when one of them keeps it (a vectorized test first).
     for j in 0..w {
-        let col = &dots.col_as_slice(j)[..len];
-        let (rn, rl, rb) = (ref_norm[j], ref_len[j], ref_bound[j]);
-        let lo = |i: usize| (rn - 2.0 * col[i]) - scale[i] * rl - rb;
-        let mut margin = [f32::NEG_INFINITY; LANES32];
-        let full = len - len % LANES32;
-        for i0 in (0..full).step_by(LANES32) {
-            for l in 0..LANES32 {
-                let x = best_hi[i0 + l] - lo(i0 + l);
-                margin[l] = if x > margin[l] { x } else { margin[l] }; // `maxps`, as above
-            }
-        }
-        let tail = (full..len).map(|i| best_hi[i] - lo(i)).fold(f32::NEG_INFINITY, f32::max);
-        if margin.iter().fold(tail, |a, &b| a.max(b)) < 0.0 {
+        let (dot, rn, rl, rb) = (col(j), ref_norm[j], ref_len[j], ref_bound[j]);
+        let lo: [f32; R] = std::array::from_fn(|l| (rn - 2.0 * dot[l]) - sc[l] * rl - rb);
+        // (An OR of comparisons: a reduction the compiler vectorizes, unlike a max of floats.)
+        if !(0..R).fold(false, |any, l| any | (lo[l] <= hi[l])) {
             continue;
         }
-        for i in 0..len {
-            let l = lo(i);
-            if l <= best_hi[i] {
-                let list = &mut cands[i];
-                list.push((l, c0 + j));
+        for (l, list) in cands.iter_mut().enumerate() {
+            if lo[l] <= hi[l] {
+                list.push((lo[l], c0 + j));
                 if list.len() >= 64 {
-                    let hi = best_hi[i];
-                    list.retain(|c| c.0 <= hi);
+                    let h = hi[l];
+                    list.retain(|c| c.0 <= h);
                 }
             }
         }
