@@ -15,11 +15,12 @@
 //! Keys: `k` one candidate size (else `cands=20/30/40/50`), `wd wl wc wo` energy weights,
 //! `mask=std|res`, `orient=p|r|i`, `ug=0|1` unit gradients, `signed=N`, `nd=N` WKS count,
 //! `kd=N` WKS eigenpairs, `ss=N` keep every ss-th WKS, `zo=K` final ZoomOut size (0 none),
-//! `zs=S` its step, `ns=N` its samples, `zp=K` probe size, `bij=W` the bijective ZoomOut with
-//! bijectivity weight W instead of ZoomOut, `pol=N` rounds of the bijective polish (0 none),
-//! `bs=N` samples of the basin search (0: none, candidates by edge distortion), `br=N` its
-//! correction rounds, `banch=N` its anchors on Y, `near=P` the vertex pairs n·m above which the
-//! searches are restricted near the samples' map (`--near-above`), `nc=N` its cells.
+//! `zs=S` its step, `ns=N` its samples, `zp=K` probe size, `ps=S` its step, `pn=N` its
+//! samples, `bij=W` the bijective ZoomOut with bijectivity weight W instead of ZoomOut,
+//! `pol=N` rounds of the bijective polish (0 none), `bs=N` samples of the basin search (0:
+//! none, candidates by edge distortion), `br=N` its correction rounds, `banch=N` its anchors on
+//! Y, `near=P` the vertex pairs n·m above which the searches are restricted near the samples'
+//! map (`--near-above`), `nc=N` its cells.
 //!
 //! Landmarks (issue 28, `funcorr match --landmarks`): `lm=N` gives the pipeline N ground-truth
 //! pairs, the farthest-point samples (Euclidean, on X) of the template points starting from the
@@ -142,6 +143,8 @@ impl Variant {
                 "zs" => a.refine.step = u(),
                 "ns" => a.refine.samples = u(),
                 "zp" => a.probe.k_final = u(),
+                "ps" => a.probe.step = u(),
+                "pn" => a.probe.samples = u(),
                 "bij" => a.bijective = f(),
                 "cp" => a.continue_probe = val == "1",
                 "pol" => a.polish = u(),

@@ -409,72 +409,88 @@ impl Energy {
     /// The Hessian H / 2 (K × K, K = k_X k_Y, column-major vec of C: entry C_ij at i + j k_Y) and
     /// the right-hand side, so that E(C) = cᵀ H c / 2 ... = vec(C)ᵀ H vec(C) − 2 rhsᵀ vec(C) + const.
     fn normal_equations(&self) -> (Mat<f64>, Vec<f64>) {
+        use rayon::prelude::*;
         let (kx, ky) = (self.k_x(), self.k_y());
         let kk = kx * ky;
         let [wd, wl, wc, wo] = self.eff;
-        let mut h = Mat::<f64>::zeros(kk, kk);
-        // Data: wd (Â Âᵀ ⊗ I).
         let aat = mul(self.a.as_ref(), self.a.transpose());
-        for j in 0..kx {
-            for jp in 0..kx {
-                let v = wd * aat[(j, jp)];
-                for i in 0..ky {
-                    h[(i + j * ky, i + jp * ky)] += v;
-                }
-            }
-        }
-        // Laplacian: wl diag(vec M).
-        for j in 0..kx {
-            for i in 0..ky {
-                h[(i + j * ky, i + j * ky)] += wl * self.mask[(i, j)];
-            }
-        }
-        // Operator terms: Σ_p (X Xᵀ ⊗ I + I ⊗ YᵀY − σ (X ⊗ Y + (X ⊗ Y)ᵀ)).
-        for (w, ox, oy, sigma) in [(wc, &self.dx, &self.dy, 1.0), (wo, &self.ox, &self.oy, self.sigma)] {
-            if w == 0.0 || ox.is_empty() {
-                continue;
-            }
-            let mut xx = Mat::<f64>::zeros(kx, kx);
-            let mut yy = Mat::<f64>::zeros(ky, ky);
+        // Operator terms: Σ_p (X Xᵀ ⊗ I + I ⊗ YᵀY − σ (X ⊗ Y + (X ⊗ Y)ᵀ)), with
+        // (X ⊗ Y)[(i + j ky), (i' + j' ky)] = X[j, j'] Y[i, i'] and its transpose X[j', j] Y[i', i].
+        // The Kronecker sums of every term come from one product per column block j' of H:
+        // S_j' = R Lᵀ_j' (k_Y² × k_X), S_j'[(i + i' ky), j] = Σ_(term, p) wσ (X_p[j, j'] Y_p[i, i']
+        // + X_p[j', j] Y_p[i', i]), with L's rows (j' + j kx) holding wσ X_p[j, j'] and wσ X_p[j', j]
+        // and R's rows (i + i' ky) holding Y_p[i, i'] and Y_p[i', i], over all p of all terms.
+        // No k_X² × k_Y² matrix beside H is held (at k = 50 it would be another 50 MB per fit).
+        let terms: Vec<(f64, &Vec<Mat<f64>>, &Vec<Mat<f64>>, f64)> =
+            [(wc, &self.dx, &self.dy, 1.0), (wo, &self.ox, &self.oy, self.sigma)]
+                .into_iter()
+                .filter(|(w, ox, _, _)| *w != 0.0 && !ox.is_empty())
+                .collect();
+        let mut xx = Mat::<f64>::zeros(kx, kx);
+        let mut yy = Mat::<f64>::zeros(ky, ky);
+        for &(w, ox, oy, _) in &terms {
             for (x, y) in ox.iter().zip(oy.iter()) {
-                matmul(xx.as_mut(), Accum::Add, x.as_ref(), x.transpose(), 1.0, Par::Seq);
-                matmul(yy.as_mut(), Accum::Add, y.transpose(), y.as_ref(), 1.0, Par::Seq);
+                matmul(xx.as_mut(), Accum::Add, x.as_ref(), x.transpose(), w, Par::Seq);
+                matmul(yy.as_mut(), Accum::Add, y.transpose(), y.as_ref(), w, Par::Seq);
             }
-            for j in 0..kx {
+        }
+        let inner: usize = terms.iter().map(|t| 2 * t.1.len()).sum();
+        let mut l = Mat::<f64>::zeros(kx * kx, inner);
+        let mut r = Mat::<f64>::zeros(ky * ky, inner);
+        let mut at = 0;
+        for &(w, ox, oy, sigma) in &terms {
+            for (x, y) in ox.iter().zip(oy.iter()) {
                 for jp in 0..kx {
+                    for j in 0..kx {
+                        l[(jp + j * kx, at)] = w * sigma * x[(j, jp)];
+                        l[(jp + j * kx, at + 1)] = w * sigma * x[(jp, j)];
+                    }
+                }
+                for ip in 0..ky {
                     for i in 0..ky {
-                        h[(i + j * ky, i + jp * ky)] += w * xx[(j, jp)];
+                        r[(i + ip * ky, at)] = y[(i, ip)];
+                        r[(i + ip * ky, at + 1)] = y[(ip, i)];
                     }
                 }
+                at += 2;
             }
-            for j in 0..kx {
-                for i in 0..ky {
-                    for ip in 0..ky {
-                        h[(i + j * ky, ip + j * ky)] += w * yy[(i, ip)];
-                    }
-                }
-            }
-            // Σ_p X_p ⊗ Y_p by products: G[(j, j'), (i, i')] = Σ_p X_p[j, j'] Y_p[i, i'], formed one
-            // column j' of X at a time (k_X × k_Y² each) so that no k_X² × k_Y² matrix beside H is
-            // ever held (at k = 50 it would be another 50 MB per fit).
-            let q = ox.len();
-            let xv = Mat::from_fn(kx * kx, q, |r, p| ox[p][(r % kx, r / kx)]);
-            let yv = Mat::from_fn(ky * ky, q, |r, p| oy[p][(r % ky, r / ky)]);
-            let mut g = Mat::<f64>::zeros(kx, ky * ky);
-            for jp in 0..kx {
-                matmul(g.as_mut(), Accum::Replace, xv.subrows(jp * kx, kx), yv.transpose(), 1.0, Par::Seq);
-                for j in 0..kx {
-                    for ip in 0..ky {
-                        for i in 0..ky {
-                            let v = g[(j, i + ip * ky)];
-                            // (X ⊗ Y)[(i + j ky), (i' + j' ky)] = X[j, j'] Y[i, i'], and its transpose.
-                            h[(i + j * ky, ip + jp * ky)] -= w * sigma * v;
-                            h[(ip + jp * ky, i + j * ky)] -= w * sigma * v;
+        }
+        // L's rows of column block j' are j' + j kx: every kx-th row from j'. Gathered per block
+        // into a contiguous k_X × inner matrix.
+        let mut h = Mat::<f64>::zeros(kk, kk);
+        h.as_mut().par_col_chunks_mut(ky).enumerate().for_each_init(
+            || (Mat::<f64>::zeros(ky * ky, kx), Mat::<f64>::zeros(kx, inner)),
+            |(sum, lj), (jp, mut block)| {
+                if inner > 0 {
+                    for j in 0..kx {
+                        for t in 0..inner {
+                            lj[(j, t)] = l[(jp + j * kx, t)];
                         }
                     }
+                    matmul(sum.as_mut(), Accum::Replace, r.as_ref(), lj.transpose(), 1.0, Par::Seq);
                 }
-            }
-        }
+                for ip in 0..ky {
+                    let col =
+                        block.as_mut().col_mut(ip).try_as_col_major_mut().expect("contiguous column").as_slice_mut();
+                    for j in 0..kx {
+                        let run = &mut col[j * ky..(j + 1) * ky];
+                        if inner > 0 {
+                            let s = &sum.col_as_slice(j)[ip * ky..(ip + 1) * ky];
+                            run.iter_mut().zip(s).for_each(|(h, &v)| *h = -v);
+                        }
+                        // Data wd (Â Âᵀ ⊗ I) and the terms' X Xᵀ ⊗ I: on the diagonal of each
+                        // ky × ky block.
+                        run[ip] += wd * aat[(j, jp)] + xx[(j, jp)];
+                    }
+                    // The terms' I ⊗ YᵀY: the diagonal block j = j'.
+                    for i in 0..ky {
+                        col[i + jp * ky] += yy[(i, ip)];
+                    }
+                    // Laplacian: wl diag(vec M).
+                    col[ip + jp * ky] += wl * self.mask[(ip, jp)];
+                }
+            },
+        );
         let bat = mul(self.b.as_ref(), self.a.transpose());
         let rhs = (0..kk).map(|t| wd * bat[(t % ky, t / ky)]).collect();
         (h, rhs)
