@@ -421,11 +421,10 @@ impl Energy {
         // + X_p[j', j] Y_p[i', i]), with L's rows (j' + j kx) holding wσ X_p[j, j'] and wσ X_p[j', j]
         // and R's rows (i + i' ky) holding Y_p[i, i'] and Y_p[i', i], over all p of all terms.
         // No k_X² × k_Y² matrix beside H is held (at k = 50 it would be another 50 MB per fit).
-        let terms: Vec<(f64, &Vec<Mat<f64>>, &Vec<Mat<f64>>, f64)> =
-            [(wc, &self.dx, &self.dy, 1.0), (wo, &self.ox, &self.oy, self.sigma)]
-                .into_iter()
-                .filter(|(w, ox, _, _)| *w != 0.0 && !ox.is_empty())
-                .collect();
+        let terms: Vec<_> = [(wc, &self.dx[..], &self.dy[..], 1.0), (wo, &self.ox[..], &self.oy[..], self.sigma)]
+            .into_iter()
+            .filter(|(w, ox, _, _)| *w != 0.0 && !ox.is_empty())
+            .collect();
         let mut xx = Mat::<f64>::zeros(kx, kx);
         let mut yy = Mat::<f64>::zeros(ky, ky);
         for &(w, ox, oy, _) in &terms {
