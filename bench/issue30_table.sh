@@ -24,7 +24,9 @@
 #
 # Knobs: SHARED (../shared), OUT (bench/out/issue30), FUNCORR_BIN (target/release/funcorr, built
 # unless SKIP_BUILD=1), STEPS, PAIRS_5K (10), BIG (where the subdivided pair lives or is made;
-# default $OUT/big). Results: $OUT/<step>/..., a summary in $OUT/summary.md.
+# default $OUT/big), LARGE_REPEATS (3: timed runs per shape and k of the large shapes' eigsh rows,
+# the fastest reported; 1 halves the step's time but leaves single runs' noise in the ratios).
+# Results: $OUT/<step>/..., a summary in $OUT/summary.md.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
@@ -117,7 +119,7 @@ for step in $STEPS; do
         log "spectrum vs scipy eigsh"
         SKIP_BUILD=1 REPEATS=3 KS="50 100 200 350" SHAPES="$D/faust_r/tr_reg_000.off" FUNCORR_BIN=$FUNCORR_BIN \
             OUT=$OUT/spectrum5k SHARED=$SHARED bash bench/spectrum_vs_scipy.sh >"$OUT/spectrum5k.md" 2>"$OUT/spectrum5k.log"
-        SKIP_BUILD=1 REPEATS=1 KS="50 100 200 350" SHAPES="$D/tosca_hires/cat0.off $D/tosca_hires/david0.off" \
+        SKIP_BUILD=1 REPEATS=${LARGE_REPEATS:-3} KS="50 100 200 350" SHAPES="$D/tosca_hires/cat0.off $D/tosca_hires/david0.off" \
             FUNCORR_BIN=$FUNCORR_BIN OUT=$OUT/spectrum_large SHARED=$SHARED \
             bash bench/spectrum_vs_scipy.sh >"$OUT/spectrum_large.md" 2>"$OUT/spectrum_large.log"
         note "## Eigenbasis: funcorr spectrum vs scipy eigsh"
