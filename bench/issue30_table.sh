@@ -17,7 +17,7 @@
 #                (bench/completion_speed.sh).
 #   6. batch     all 97 faust_r pairs: `funcorr bench`, funcorr.batch local and Ray
 #                (bench/batch_throughput.sh; PY= an interpreter with this commit's funcorr and
-#                ray, default bench/.venv-batch when it exists).
+#                ray, else this commit's package installed into bench/.venv-batch first).
 #
 #     bash bench/issue30_table.sh                       # everything (about an hour on 2 cores)
 #     STEPS="large million" BIG=/data/big bash bench/issue30_table.sh
@@ -175,11 +175,10 @@ for step in $STEPS; do
         ;;
     batch)
         log "batch throughput, 97 faust_r pairs"
-        # PY: an interpreter with this commit's funcorr and ray (default: bench/.venv-batch when
-        # it exists; else batch_throughput.sh makes it, building the wheel first, untimed).
-        py=${PY:-}
-        [[ -z $py && -x bench/.venv-batch/bin/python ]] && py=bench/.venv-batch/bin/python
-        PY=$py OUT=$OUT/batch SHARED=$SHARED bash bench/batch_throughput.sh >"$OUT/batch.md" 2>"$OUT/batch.log"
+        # PY: an interpreter with this commit's funcorr and ray; without it batch_throughput.sh
+        # installs this commit's package into bench/.venv-batch first (untimed), so that the
+        # local and Ray rows never run an older build.
+        PY=${PY:-} OUT=$OUT/batch SHARED=$SHARED bash bench/batch_throughput.sh >"$OUT/batch.md" 2>"$OUT/batch.log"
         note "## Batch throughput (97 faust_r pairs)"
         note
         cat "$OUT/batch.md" >>"$SUMMARY"
