@@ -420,10 +420,15 @@ pub fn axiomatic_pipeline(
         landmarks: lm.as_ref(),
         pins: &pins,
     };
-    // The candidates are probed independently, in parallel.
+    // The candidates are probed independently: side by side, unless two probes' restricted
+    // ZoomOuts would hold more than PROBES_TOGETHER_BYTES (at 10⁶ vertices they set the peak);
+    // then one at a time, each probe's searches on both cores.
+    let ky = p.probe.k_final.max(p.candidates.iter().copied().max().unwrap_or(0));
+    let min_len = if probes_one_at_a_time(near_positions.is_some(), y.basis.n(), ky) { usize::MAX } else { 1 };
     let mut probed: Vec<Probe> = fits
         .par_iter()
         .zip(p.candidates.par_iter())
+        .with_min_len(min_len)
         .map(|(c, &k)| {
             if fits.len() == 1 && search.is_none() {
                 return Ok(Probe { candidate: Candidate::unscored(k), c: None, images: None, corrected: [None, None] });
@@ -482,6 +487,7 @@ pub fn axiomatic_pipeline(
         let k0 = p.candidates.iter().copied().min().unwrap_or(1).min(s.x.len() / 4).max(1);
         let extra: Vec<(Probe, Pullback)> = hybrids
             .par_iter()
+            .with_min_len(min_len)
             .map(|(from, joint, hybrid)| {
                 let c0 = Pullback(refine::pullback(phi, psi, &s.x.samples, hybrid, k0, k0)?);
                 let mut q = ctx.probe(&c0, k0, false)?;
@@ -674,6 +680,21 @@ struct Search {
     neighbours: Vec<Vec<usize>>,
     /// ‖F(s_i) − G(a)‖ between X's samples and Y's anchors, from the fits' data.
     descriptors: Mat<f64>,
+}
+
+/// Bytes a restricted probe holds per row of Y and column of its ZoomOut's largest size: the
+/// reference Ψ Cᵀ (f64), its copy by cells (f64) and the cells' f32 strips.
+const PROBE_BYTES_PER_ENTRY: usize = 8 + 8 + 4;
+
+/// The most memory two candidate probes' restricted ZoomOuts may hold side by side (bytes): 1 GiB
+/// (the 52k-vertex pairs need ≈ 0.13 GB, the 840k-vertex pair ≈ 2 GB, which then set the peak).
+const PROBES_TOGETHER_BYTES: usize = 1 << 30;
+
+/// Whether the candidate probes run one at a time: with restricted searches (`near`) on a Y of
+/// m vertices, when two probes' ZoomOuts up to size k would hold more than
+/// [`PROBES_TOGETHER_BYTES`] side by side.
+fn probes_one_at_a_time(near: bool, m: usize, k: usize) -> bool {
+    near && (2 * PROBE_BYTES_PER_ENTRY).saturating_mul(m).saturating_mul(k) > PROBES_TOGETHER_BYTES
 }
 
 /// Neighbours per sample in the orientation of sample maps ([`search::orientation`]).
@@ -976,6 +997,16 @@ pub(super) mod tests {
         let mut o = opts(Orientation::Preserve);
         o.completion.form = crate::completion::Form::LowNorm;
         assert!(run(&x, &y, &fx, &gy, &o).is_err());
+    }
+
+    /// The probes run side by side on the 52k-vertex pairs and one at a time on the 840k one
+    /// (the default probe size 60), and always side by side without restricted searches.
+    #[test]
+    fn only_probes_too_large_for_memory_run_one_at_a_time() {
+        assert!(!probes_one_at_a_time(true, 52_565, 60));
+        assert!(probes_one_at_a_time(true, 840_455, 60));
+        assert!(!probes_one_at_a_time(false, 840_455, 60));
+        assert!(probes_one_at_a_time(true, usize::MAX, usize::MAX));
     }
 
     #[test]
