@@ -418,7 +418,7 @@ impl Energy {
         // (X ⊗ Y)[(i + j ky), (i' + j' ky)] = X[j, j'] Y[i, i'] and its transpose X[j', j] Y[i', i].
         // The Kronecker sums of every term come from one product per column block j' of H:
         // S_j' = R Lᵀ_j' (k_Y² × k_X), S_j'[(i + i' ky), j] = Σ_(term, p) wσ (X_p[j, j'] Y_p[i, i']
-        // + X_p[j', j] Y_p[i', i]), with L's rows (j' + j kx) holding wσ X_p[j, j'] and wσ X_p[j', j]
+        // + X_p[j', j] Y_p[i', i]), with L's rows (j + j' kx) holding wσ X_p[j, j'] and wσ X_p[j', j]
         // and R's rows (i + i' ky) holding Y_p[i, i'] and Y_p[i', i], over all p of all terms.
         // No k_X² × k_Y² matrix beside H is held (at k = 50 it would be another 50 MB per fit).
         let terms: Vec<_> = [(wc, &self.dx[..], &self.dy[..], 1.0), (wo, &self.ox[..], &self.oy[..], self.sigma)]
@@ -441,8 +441,8 @@ impl Energy {
             for (x, y) in ox.iter().zip(oy.iter()) {
                 for jp in 0..kx {
                     for j in 0..kx {
-                        l[(jp + j * kx, at)] = w * sigma * x[(j, jp)];
-                        l[(jp + j * kx, at + 1)] = w * sigma * x[(jp, j)];
+                        l[(j + jp * kx, at)] = w * sigma * x[(j, jp)];
+                        l[(j + jp * kx, at + 1)] = w * sigma * x[(jp, j)];
                     }
                 }
                 for ip in 0..ky {
@@ -454,18 +454,12 @@ impl Energy {
                 at += 2;
             }
         }
-        // L's rows of column block j' are j' + j kx: every kx-th row from j'. Gathered per block
-        // into a contiguous k_X × inner matrix.
         let mut h = Mat::<f64>::zeros(kk, kk);
         h.as_mut().par_col_chunks_mut(ky).enumerate().for_each_init(
-            || (Mat::<f64>::zeros(ky * ky, kx), Mat::<f64>::zeros(kx, inner)),
-            |(sum, lj), (jp, mut block)| {
+            || Mat::<f64>::zeros(ky * ky, kx),
+            |sum, (jp, mut block)| {
                 if inner > 0 {
-                    for j in 0..kx {
-                        for t in 0..inner {
-                            lj[(j, t)] = l[(jp + j * kx, t)];
-                        }
-                    }
+                    let lj = l.as_ref().subrows(jp * kx, kx);
                     matmul(sum.as_mut(), Accum::Replace, r.as_ref(), lj.transpose(), 1.0, Par::Seq);
                 }
                 for ip in 0..ky {

@@ -160,15 +160,16 @@ fn bijective_reference(
                 let beta = sq(&prod, s, 0) + sq(&rows_psi, s, 0) + w * sq(&prod, s, k);
                 out[(s, k)] = beta - sq(&prod, s, 2 * k);
             }
-            out.subcols_mut(0, k).copy_from(prod.as_ref().subcols(2 * k, k));
+            for c in 0..k {
+                for s in 0..chunk.len() {
+                    out[(s, c)] = scale * prod[(s, 2 * k + c)];
+                }
+            }
         },
     );
     let shift = (0..refs.len()).map(|j| reference[(j, k)]).fold(0.0f64, |a, v| a.max(-v));
     for j in 0..refs.len() {
-        reference[(j, k)] = (reference[(j, k)] + shift).max(0.0).sqrt();
-    }
-    if scale != 1.0 {
-        reference.as_mut().par_col_chunks_mut(1).for_each(|col| col.col_mut(0).iter_mut().for_each(|v| *v *= scale));
+        reference[(j, k)] = scale * (reference[(j, k)] + shift).max(0.0).sqrt();
     }
     reference
 }
