@@ -70,9 +70,12 @@ pub enum Surface {
 }
 
 /// Cells of [`PreparedShape::quadrature_cells`]: surfaces of more than twice as many vertices
-/// integrate the fits' operators over this many cells ([`crate::cell_quadrature`]; 17 vertices
-/// per cell at 840k), smaller ones exactly (every shape up to 10⁵ vertices is unchanged).
-pub const QUADRATURE_CELLS: usize = 50_000;
+/// integrate the fits' operators over this many cells ([`crate::cell_quadrature`]; 4 vertices
+/// per cell at 52k, 67 at 840k), smaller ones exactly (every shape up to 25,000 vertices). The
+/// quadrature's error depends on the cells' size against the basis' wavelengths, not on the
+/// vertex count, so one count serves every size; measured together with `GRAPH_NODES` of the
+/// basin search (`matching::search`, which see).
+pub const QUADRATURE_CELLS: usize = 12_500;
 
 /// The area of a shape from its Laplacian's vertex weights A (Σ A: units² for meshes and
 /// clouds), as [`PreparedShape::area`] takes it: 1 when the sum is not finite and positive (the

@@ -59,15 +59,17 @@ impl Default for SearchOptions {
 }
 
 /// Cells of the Voronoi graph ([`GraphGeodesics::voronoi_graph`]) in which [`SampleDistances`]
-/// measures the samples' distances on meshes of more than twice as many vertices. The search
-/// compares distances at the resolution of its samples (500 anchors by default); cells of
-/// 100 times that count are ten times finer in spacing, and their detours lengthen the
-/// distances by 6.6 % on average, 8.3 % at p90, alike on both shapes (TOSCA david0 subdivided to
-/// 840k vertices), while each sample's Dijkstra visits 50,000 nodes instead of n: on
-/// david0 → david1 subdivided twice (840k vertices each) the stage takes 10 s instead of 62 s
-/// and the map is the same. Below 2 × this many vertices the mesh's own edge graph is used
-/// (every pair up to 10⁵ vertices: the maps there do not change).
-pub const GRAPH_NODES: usize = 50_000;
+/// measures the samples' distances on meshes of more than twice as many vertices (the mesh's own
+/// edge graph below). The search compares distances at the resolution of its anchors (500 by
+/// default): 25 cells per anchor, five times finer in spacing. The cells' detours lengthen the
+/// distances by ≈ 6.6 % on average, alike on both shapes, and each sample's Dijkstra visits
+/// 12,500 nodes instead of n, on a mesh of any size. Measured (EXPERIMENTS.md, "The search and
+/// the fits on cells"): 20 faust_r pairs subdivided to 20k vertices with 8,000 cells here and
+/// in the quadrature mean error 1.822 → 1.818, every pair within 0.05; cat0 → cat10 (28k)
+/// 1.248 → 1.234, david0 → david1 (52k) 1.105 → 1.108 while the stage takes 0.44 s instead of
+/// 1.17 s and 0.56 s instead of 2.48 s; too few cells do hurt: 2,400 on the 5k faust_r shapes
+/// (five per anchor) 1.857 → 1.882 over 97 pairs, one pair 4.57.
+pub const GRAPH_NODES: usize = 12_500;
 
 /// Farthest-point samples of a shape, the geodesic distances between them and each vertex's
 /// nearest sample.
