@@ -11,8 +11,10 @@
 #                52k; and `funcorr spectrum -k 100` on the ≈ 10⁶-vertex shape.
 #   4. million   the ≈ 10⁶-vertex pair (two midpoint subdivisions of david0 / david1, made by
 #                examples/subdivide.rs unless BIG holds them): whole `funcorr match` under GNU
-#                time, error on 500 seeded coarse vertices with exact geodesics on the coarse
-#                david1 beside the 52k pair's on the same vertices (bench/subdivided_error.py).
+#                time, error on 500 seeded coarse vertices with exact geodesics on the
+#                subdivided david1 (the same surface as the coarse one) beside the 52k pair's on
+#                the same vertices, and with the images snapped to the coarse vertices
+#                (bench/subdivided_error.py).
 #   5. completion `--method completion` on faust_r pairs 5–12, scarce and rich data
 #                (bench/completion_speed.sh).
 #   6. batch     all 97 faust_r pairs: `funcorr bench`, funcorr.batch local and Ray
@@ -155,12 +157,16 @@ for step in $STEPS; do
         [[ -f $coarse ]] || { echo "error: the large step's david map ($coarse) is needed" >&2; exit 1; }
         bench/.venv/bin/python bench/subdivided_error.py "$BIG/david1_x16.off" "$D/tosca_hires/david1.off" \
             "$dir/match/map.txt" "$coarse" "$dir/err" >"$dir/proxy.txt"
+        # The fine map on its own surface (exact geodesics on the subdivided mesh, which is the
+        # 52k surface: the same distances) and, more strictly, snapped to the 52k vertices.
+        e_own=$(mean_error "$BIG/david0_x16.off" "$BIG/david1_x16.off" "$dir/match/map.txt" "$dir/err/gt500.vts")
         e_fine=$(mean_error "$D/tosca_hires/david0.off" "$D/tosca_hires/david1.off" "$dir/err/snapped_map.txt" "$dir/err/gt500.vts")
         e_coarse=$(mean_error "$D/tosca_hires/david0.off" "$D/tosca_hires/david1.off" "$coarse" "$dir/err/gt500.vts")
         note "## The ≈ 10⁶-vertex pair ($(n_vertices "$BIG/david0_x16.off") and $(n_vertices "$BIG/david1_x16.off") vertices)"
         note
         note "- \`funcorr spectrum david0_x16 -k 100 --no-cache\`: $(fmt_time "$dir/spectrum.time")"
-        note "- \`funcorr match\` (no cache): $(fmt_time "$dir/match.time"); error ×100 $e_fine (the 52k pair on the same 500 vertices: $e_coarse, ratio $(awk -v a="$e_fine" -v b="$e_coarse" 'BEGIN { printf "%.2f", a / b }'))"
+        ratio() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.3f", a / b }'; }
+        note "- \`funcorr match\` (no cache): $(fmt_time "$dir/match.time"); error ×100 on its own (subdivided) surface $e_own, the 52k pair on the same 500 vertices $e_coarse: ratio $(ratio "$e_own" "$e_coarse"); the fine map's images snapped to the nearest 52k vertex: $e_fine, ratio $(ratio "$e_fine" "$e_coarse") (snapping adds the 52k mesh's rounding to a map that has none)"
         note "- stages: $(grep -o 'funcorr: .*' "$dir/match.log" | tail -1)"
         note "- resident memory over time: $dir/rss.txt (seconds, MB); largest $(sort -k2 -n "$dir/rss.txt" | tail -1 | awk '{ print $2 " MB at " $1 " s" }')"
         note
