@@ -19,7 +19,11 @@
 //!
 //! Small problems (n ≤ [`SpectralOptions::dense_below`]) use faer's dense symmetric eigensolver.
 //!
-//! Setting the environment variable `FUNCORR_DEBUG_LANCZOS` prints, at every restart, the basis
+//! The Ritz pairs are checked when the basis is full and, in a cycle that starts with every
+//! residual within 10⁴ × the tolerance, about four times on the way (the solve then stops as
+//! soon as all pass instead of finishing the cycle).
+//!
+//! Setting the environment variable `FUNCORR_DEBUG_LANCZOS` prints, at every check, the basis
 //! size, the number of converged pairs and the worst residual estimate to stderr.
 //!
 //! Every returned pair is verified: the residual ‖Wφ − λAφ‖_{A⁻¹} / λ_max (λ_max the largest
