@@ -491,6 +491,37 @@ mod tests {
         }
     }
 
+    /// A cycle that starts near convergence stops at an early check, before the basis is full
+    /// (bumpy sphere, 2,562 vertices, k = 50, b = 2: 158 solves instead of the 168 of whole
+    /// cycles), and the pairs it returns are the dense solver's.
+    #[test]
+    fn a_cycle_near_convergence_stops_at_an_early_check() {
+        let lap = crate::laplacian::cotangent(&crate::primitives::bumpy_sphere(4)).unwrap();
+        let (k, b) = (50, 2);
+        let mut dense_opts = SpectralOptions::new(k);
+        dense_opts.dense_below = usize::MAX;
+        let dense = super::super::eigen_basis(&lap, &dense_opts, None).unwrap().0;
+        let total: f64 = lap.mass.iter().sum();
+        let unit = lap.with_mass(lap.mass.iter().map(|a| a / total).collect());
+        let sqrt_m: Vec<f64> = unit.mass.iter().map(|a| a.sqrt()).collect();
+        let mut opts = SpectralOptions::new(k);
+        opts.block_size = Some(b);
+        let (lambda, _, info) = lanczos(&unit, &sqrt_m, &opts, None).unwrap();
+        // Whole cycles: pmax solves, then pmax − keep per restart (the sizes of `lanczos_run`).
+        let pmax = info.max_basis;
+        let keep = pmax - (pmax - (k + (pmax - k) / 3).min(pmax - 2 * b)).div_ceil(b) * b;
+        let whole = pmax + info.restarts * (pmax - keep);
+        assert!(info.restarts >= 1 && info.operator_applications < whole, "{info:?}, whole cycles {whole}");
+        for i in 0..k {
+            let l = lambda[i] / total;
+            assert!(
+                (l - dense.eigenvalues[i]).abs() < 1e-9 * dense.eigenvalues[k - 1],
+                "λ[{i}] {l} vs {}",
+                dense.eigenvalues[i]
+            );
+        }
+    }
+
     /// A block almost entirely in the span of the basis, partly outside the local range: the
     /// local pass and the repeated full passes (the DGKS test fires) leave it orthogonal to
     /// every column to round-off, and the coefficients are those of the projection.
