@@ -457,6 +457,15 @@ fn residuals_ok(lap: &Laplacian, sqrt_m: &[f64], u: MatRef<f64>, lambda: &[f64],
 mod tests {
     use super::*;
 
+    /// The first k eigenvalues λ of the unit-area problem, scaled back by the area `total`,
+    /// equal the dense solver's to 10⁻⁹ λ_k.
+    fn assert_eigenvalues_match(lambda: &[f64], total: f64, dense: &[f64], k: usize) {
+        for i in 0..k {
+            let l = lambda[i] / total;
+            assert!((l - dense[i]).abs() < 1e-9 * dense[k - 1], "λ[{i}] {l} vs {}", dense[i]);
+        }
+    }
+
     /// A final check that fails (an acceptance threshold no residual meets) restarts from the
     /// k Ritz vectors computed in place, rounded down to whole blocks (k = 30, b = 4: 28 kept),
     /// and the pairs it then returns are the dense solver's.
@@ -474,14 +483,7 @@ mod tests {
         let (lambda, u, info) = lanczos(&unit, &sqrt_m, &opts, None).unwrap();
         assert!(info.restarts >= 1, "{info:?}");
         assert_eq!((u.nrows(), u.ncols()), (lap.n(), k));
-        for i in 0..k {
-            let l = lambda[i] / total;
-            assert!(
-                (l - dense.eigenvalues[i]).abs() < 1e-9 * dense.eigenvalues[k - 1],
-                "λ[{i}] {l} vs {}",
-                dense.eigenvalues[i]
-            );
-        }
+        assert_eigenvalues_match(&lambda, total, &dense.eigenvalues, k);
         let gram = u.transpose() * &u;
         for i in 0..k {
             for j in 0..k {
@@ -512,14 +514,7 @@ mod tests {
         let keep = pmax - (pmax - (k + (pmax - k) / 3).min(pmax - 2 * b)).div_ceil(b) * b;
         let whole = pmax + info.restarts * (pmax - keep);
         assert!(info.restarts >= 1 && info.operator_applications < whole, "{info:?}, whole cycles {whole}");
-        for i in 0..k {
-            let l = lambda[i] / total;
-            assert!(
-                (l - dense.eigenvalues[i]).abs() < 1e-9 * dense.eigenvalues[k - 1],
-                "λ[{i}] {l} vs {}",
-                dense.eigenvalues[i]
-            );
-        }
+        assert_eigenvalues_match(&lambda, total, &dense.eigenvalues, k);
     }
 
     /// A block almost entirely in the span of the basis, partly outside the local range: the
