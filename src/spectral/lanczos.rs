@@ -245,6 +245,13 @@ pub(super) fn lanczos(
 /// gains on our meshes (david0, k = 50: 2.4e-4 → 1.1e-8 from the second restart to the third).
 const EARLY_RESIDUALS: f64 = 1e4;
 
+/// Ritz vectors a thick restart keeps in a basis of at most `pmax` columns (k wanted pairs,
+/// block size b): about k + (pmax − k) / 3, rounded so that pmax − keep is a whole number of
+/// blocks.
+fn restart_keep(pmax: usize, k: usize, b: usize) -> usize {
+    pmax - (pmax - (k + (pmax - k) / 3).min(pmax - 2 * b)).div_ceil(b) * b
+}
+
 /// One block Lanczos solve with block size b.
 #[allow(clippy::too_many_arguments)]
 fn lanczos_run(
@@ -279,8 +286,7 @@ fn lanczos_run(
             format!("k = {k} is too large for the iterative solver on n = {n} vertices (needs n > {}); ask for fewer eigenpairs", pmax + b),
         ));
     }
-    // Ritz vectors kept at a restart, so that pmax − keep is a whole number of blocks.
-    let keep = pmax - (pmax - (k + (pmax - k) / 3).min(pmax - 2 * b)).div_ceil(b) * b;
+    let keep = restart_keep(pmax, k, b);
 
     let mut rng = Normal::new(opts.seed);
     let mut v = Mat::<f64>::zeros(n, pmax + b);
@@ -335,8 +341,8 @@ fn lanczos_run(
             h.submatrix_mut(j1, j0, b, b).copy_from(&beta);
             v.subcols_mut(j1, b).copy_from(&w);
             p = j1;
-            let early = check_early && p < pmax && p >= k + b && (p - restart_block).is_multiple_of(stride);
-            if !early && p < pmax {
+            let early = check_early && p >= k + b && (p - restart_block).is_multiple_of(stride);
+            if p < pmax && !early {
                 continue;
             }
         }
@@ -509,9 +515,9 @@ mod tests {
         let mut opts = SpectralOptions::new(k);
         opts.block_size = Some(b);
         let (lambda, _, info) = lanczos(&unit, &sqrt_m, &opts, None).unwrap();
-        // Whole cycles: pmax solves, then pmax − keep per restart (the sizes of `lanczos_run`).
+        // Whole cycles: pmax solves, then pmax − keep per restart.
         let pmax = info.max_basis;
-        let keep = pmax - (pmax - (k + (pmax - k) / 3).min(pmax - 2 * b)).div_ceil(b) * b;
+        let keep = restart_keep(pmax, k, b);
         let whole = pmax + info.restarts * (pmax - keep);
         assert!(info.restarts >= 1 && info.operator_applications < whole, "{info:?}, whole cycles {whole}");
         assert_eigenvalues_match(&lambda, total, &dense.eigenvalues, k);
