@@ -20,7 +20,8 @@
 //! `pol=N` rounds of the bijective polish (0 none), `bs=N` samples of the basin search (0:
 //! none, candidates by edge distortion), `br=N` its correction rounds, `banch=N` its anchors on
 //! Y, `near=P` the vertex pairs n·m above which the searches are restricted near the samples'
-//! map (`--near-above`), `nc=N` its cells.
+//! map (`--near-above`), `nc=N` its cells, `cp=0|1` the final ZoomOut continued from the
+//! probe, `cz=0|1` ZoomOut coarse to fine in Y on shapes of more than 25,000 vertices.
 //!
 //! Landmarks (issue 28, `funcorr match --landmarks`): `lm=N` gives the pipeline N ground-truth
 //! pairs, the farthest-point samples (Euclidean, on X) of the template points starting from the
@@ -147,6 +148,7 @@ impl Variant {
                 "pn" => a.probe.samples = u(),
                 "bij" => a.bijective = f(),
                 "cp" => a.continue_probe = val == "1",
+                "cz" => a.coarse_zoomout = val == "1",
                 "pol" => a.polish = u(),
                 "bs" => a.search.samples = u(),
                 "br" => a.search.rounds = u(),

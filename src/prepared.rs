@@ -108,6 +108,7 @@ pub struct PreparedShape {
     gradients: OnceLock<Option<FaceGradients>>,
     normals: OnceLock<Option<Vec<[f64; 3]>>>,
     cells: OnceLock<Option<Vec<u32>>>,
+    grid: OnceLock<Option<Vec<usize>>>,
 }
 
 impl PreparedShape {
@@ -171,6 +172,7 @@ impl PreparedShape {
             gradients: OnceLock::new(),
             normals: OnceLock::new(),
             cells: OnceLock::new(),
+            grid: OnceLock::new(),
         }
     }
 
@@ -241,16 +243,27 @@ impl PreparedShape {
         self.cells
             .get_or_init(|| {
                 let t = self.triangles()?;
-                if t.n_vertices() <= 2 * QUADRATURE_CELLS {
-                    return None;
-                }
+                let seeds = self.grid_vertices()?;
                 let graph = crate::geodesic::GraphGeodesics::mesh_edges(t).ok()?;
-                let seeds = crate::spatial::grid_samples(t.vertices(), QUADRATURE_CELLS);
-                let (_, mut labels) = graph.nearest_sources(&seeds).ok()?;
+                let (_, mut labels) = graph.nearest_sources(seeds).ok()?;
                 for (next, l) in (seeds.len() as u32..).zip(labels.iter_mut().filter(|l| **l == u32::MAX)) {
                     *l = next;
                 }
                 Some(labels)
+            })
+            .as_deref()
+    }
+
+    /// About [`QUADRATURE_CELLS`] well-spread vertices ([`crate::spatial::grid_samples`] of
+    /// [`Self::positions`]; ascending vertex ids; computed on first use) for surfaces of more than
+    /// 2 × [`QUADRATURE_CELLS`] vertices, None below: the seeds of [`Self::quadrature_cells`], and
+    /// the vertices among which ZoomOut's steps before its last match the samples of the other
+    /// shape on large pairs ([`crate::refine::zoomout_coarse_to_fine`]).
+    pub fn grid_vertices(&self) -> Option<&[usize]> {
+        self.grid
+            .get_or_init(|| {
+                let p = self.positions()?;
+                (p.len() > 2 * QUADRATURE_CELLS).then(|| crate::spatial::grid_samples(p, QUADRATURE_CELLS))
             })
             .as_deref()
     }

@@ -83,6 +83,13 @@ pub struct AxiomaticPipeline {
     /// 0.1), for about 0.6 s per 5k pair (EXPERIMENTS.md).
     #[serde(default)]
     pub polish: usize,
+    /// ZoomOut coarse to fine on large shapes (Y of more than 2 × [`crate::prepared::QUADRATURE_CELLS`]
+    /// vertices, which have [`PreparedShape::grid_vertices`]): every step of the probes' and the
+    /// final ZoomOut but the last matches the samples among Y's 12,500 grid vertices only
+    /// ([`crate::refine::zoomout_coarse_to_fine`]); the last step, the polish and the final maps
+    /// search as before. Default on (EXPERIMENTS.md, "ZoomOut coarse to fine").
+    #[serde(default = "coarse_zoomout_default")]
+    pub coarse_zoomout: bool,
     /// When the final point maps of every vertex are searched near the map of the samples
     /// instead of exactly ([`NearSearch`]).
     #[serde(default)]
@@ -95,6 +102,11 @@ pub struct AxiomaticPipeline {
     /// default).
     #[serde(default)]
     pub landmarks: Landmarks,
+}
+
+/// The default of [`AxiomaticPipeline::coarse_zoomout`] (on).
+fn coarse_zoomout_default() -> bool {
+    true
 }
 
 /// The searches of the pipeline on large pairs. Above `above_pairs` vertex pairs n · m (with
@@ -137,6 +149,7 @@ impl Default for AxiomaticPipeline {
             refine: ZoomOutSchedule { k_final: 110, step: 5, samples: 2000 },
             bijective: 0.0,
             continue_probe: true,
+            coarse_zoomout: true,
             polish: 1,
             near: NearSearch::default(),
             search: SearchOptions::default(),
@@ -419,6 +432,7 @@ pub fn axiomatic_pipeline(
         data: (&fx, &gy),
         landmarks: lm.as_ref(),
         pins: &pins,
+        coarse: y.grid_vertices().filter(|_| p.coarse_zoomout),
     };
     // The candidates are probed independently: side by side, unless two probes' restricted
     // ZoomOuts would hold more than PROBES_TOGETHER_BYTES (at 10⁶ vertices they set the peak);
@@ -570,6 +584,8 @@ struct ProbeContext<'a> {
     /// The user's landmarks (module `landmarks`), pinned in the probes' ZoomOut.
     landmarks: Option<&'a LandmarkData>,
     pins: &'a [(usize, usize)],
+    /// Y's grid vertices for ZoomOut's steps before the last (`coarse_zoomout`), or None.
+    coarse: Option<&'a [usize]>,
 }
 
 impl ProbeContext<'_> {
@@ -585,7 +601,16 @@ impl ProbeContext<'_> {
             (Some(near), Some(sy)) => {
                 let (xs, ys) = (&self.probe_samples.vertices, &sy.vertices);
                 let scope = Scope::Near { near, x_cells: xs, y_cells: ys };
-                let c = refine::zoomout_pinned(phi, psi, self.probe_samples, c.as_ref(), &o, scope, self.pins)?;
+                let c = refine::zoomout_coarse_to_fine(
+                    phi,
+                    psi,
+                    self.probe_samples,
+                    c.as_ref(),
+                    &o,
+                    scope,
+                    self.pins,
+                    self.coarse,
+                )?;
                 let map = match self.patch {
                     // The images of the patch; other entries stay 0 (unread).
                     Some(patch) => {
@@ -597,7 +622,16 @@ impl ProbeContext<'_> {
                 (c, map)
             }
             _ => {
-                let c = refine::zoomout_pinned(phi, psi, self.probe_samples, c.as_ref(), &o, Scope::Exact, self.pins)?;
+                let c = refine::zoomout_coarse_to_fine(
+                    phi,
+                    psi,
+                    self.probe_samples,
+                    c.as_ref(),
+                    &o,
+                    Scope::Exact,
+                    self.pins,
+                    self.coarse,
+                )?;
                 let map = match self.patch {
                     Some(patch) => spread(
                         phi.nrows(),
@@ -762,6 +796,7 @@ fn refine_from(
     stages: &mut Vec<(String, f64)>,
 ) -> Result<(Pullback, Vec<usize>, Option<(Samples, Samples)>)> {
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
+    let coarse = y.grid_vertices().filter(|_| p.coarse_zoomout);
     let t = std::time::Instant::now();
     crate::progress::stage("zoomout")?;
     // Landmarks (module `landmarks`) are samples of both shapes, pinned in every point map.
@@ -807,10 +842,11 @@ fn refine_from(
                     (Some(near), Some(sy)) => Scope::Near { near, x_cells: &sx.vertices, y_cells: &sy.vertices },
                     _ => Scope::Exact,
                 };
-                let c = refine::zoomout_pinned(phi, psi, &sx, c_start.as_ref(), &o, scope, pins)?;
+                let c = refine::zoomout_coarse_to_fine(phi, psi, &sx, c_start.as_ref(), &o, scope, pins, coarse)?;
                 (c, None)
             } else {
-                let c = refine::zoomout_pinned(phi, psi, &sx, c_start.as_ref(), &o, Scope::Exact, pins)?;
+                let c =
+                    refine::zoomout_coarse_to_fine(phi, psi, &sx, c_start.as_ref(), &o, Scope::Exact, pins, coarse)?;
                 let m = pin(refine::map_of_pullback(phi, psi, c.as_ref(), None, Scope::Exact)?);
                 (c, Some(m))
             }

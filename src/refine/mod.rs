@@ -36,12 +36,12 @@ mod zoomout;
 pub use bijective::{
     bijective_polish, bijective_polish_pinned, bijective_zoomout, BijectiveOptions, POLISH_BIJECTIVITY,
 };
-pub use pullback::{map_of_pullback, map_yx_of_pullback, pullback, Near, Scope};
+pub use pullback::{map_of_pullback, map_of_pullback_among, map_yx_of_pullback, pullback, Near, Scope};
 pub use quality::{
     incident_vertices, low_pass, metric_distortion, metric_distortion_around, orientation_agreement,
     orientation_agreement_around, repair_mirrored, vertex_orientation,
 };
-pub use zoomout::{zoomout, zoomout_pinned, ZoomOutOptions};
+pub use zoomout::{zoomout, zoomout_coarse_to_fine, zoomout_pinned, ZoomOutOptions};
 
 #[cfg(test)]
 mod tests;

@@ -171,6 +171,31 @@ pub fn map_yx_of_pullback(phi: MatRef<f64>, psi: MatRef<f64>, c_yx: MatRef<f64>,
     }
 }
 
+/// [`map_of_pullback`] of the query rows `rows` of X searched among the vertices `refs` of Y
+/// only (exactly, among those): for every i in `rows`, the vertex j in `refs` whose row of
+/// Ψ_{k_Y} C_yxᵀ is nearest to row i of Φ_{k_X}. Costs O(|rows| · |refs| · k) and a
+/// |refs| × k reference instead of m × k: ZoomOut's steps before its last on large shapes
+/// ([`crate::refine::zoomout_coarse_to_fine`]). Errors as [`map_of_pullback`], and for empty
+/// `refs` or a vertex id out of range.
+pub fn map_of_pullback_among(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    c_yx: MatRef<f64>,
+    rows: &[usize],
+    refs: &[usize],
+) -> Result<Vec<usize>> {
+    let (kx, ky) = check_map_fits(phi, psi, c_yx)?;
+    if rows.iter().any(|&i| i >= phi.nrows()) || refs.iter().any(|&j| j >= psi.nrows()) {
+        return Err(Error::invalid("rows", "a vertex id is out of range"));
+    }
+    if refs.is_empty() {
+        return Err(Error::invalid("refs", "no vertex of Y to search among"));
+    }
+    let reference = mul(gather_rows(psi, refs, 0..ky, 1.0).as_ref(), c_yx.transpose());
+    let query = gather_rows(phi, rows, 0..kx, 1.0);
+    Ok(nearest_neighbors(reference.as_ref(), query.as_ref())?.into_iter().map(|t| refs[t]).collect())
+}
+
 /// Vertices per cell of the finer levels of [`rows_near`].
 const FINE_CELL: usize = 32;
 

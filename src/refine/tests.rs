@@ -45,6 +45,48 @@ fn zoomout_recovers_a_permutation_from_a_coarse_start_on_samples() {
     assert!(s < -0.99, "mirrored agreement {s}");
 }
 
+/// ZoomOut coarse to fine in Y: the steps before the last match the samples among 150 of Y's
+/// 642 vertices only; the last step searches every vertex, so the final pull-back still
+/// recovers the permutation. With every vertex as the coarse set it is plain ZoomOut.
+#[test]
+fn coarse_to_fine_zoomout_recovers_a_permutation() {
+    let x = bumpy_sphere(3);
+    let n = x.n_vertices();
+    let perm: Vec<usize> = (0..n).map(|i| (i * 101 + 7) % n).collect();
+    let mut inv = vec![0; n];
+    for (i, &p) in perm.iter().enumerate() {
+        inv[p] = i;
+    }
+    let y = x.permuted(&inv).unwrap();
+    let basis = |m: &TriMesh| eigen_basis(&cotangent(m).unwrap(), &SpectralOptions::new(40), None).unwrap().0;
+    let (bx, by) = (basis(&x), basis(&y));
+    let (phi, psi) = (bx.eigenvectors.as_ref(), by.eigenvectors.as_ref());
+    let full = pullback(phi, psi, &Samples::all(&bx.mass), &perm, 40, 40).unwrap();
+    let c0 = full.submatrix(0, 0, 4, 4).to_owned();
+    let samples = farthest_point_samples(x.vertices(), &bx.mass, 300).unwrap();
+    let o = ZoomOutOptions { k_final: 40, step: 3 };
+    let coarse = farthest_point_samples(y.vertices(), &by.mass, 150).unwrap().vertices;
+    // The coarse steps' images are coarse vertices.
+    let among = map_of_pullback_among(phi, psi, c0.as_ref(), &samples.vertices, &coarse).unwrap();
+    assert!(among.iter().all(|j| coarse.contains(j)));
+    let c = zoomout_coarse_to_fine(phi, psi, &samples, c0.as_ref(), &o, Scope::Exact, &[], Some(&coarse)).unwrap();
+    assert_eq!(c.nrows(), 40);
+    assert_eq!(map_of_pullback(phi, psi, c.as_ref(), None, Scope::Exact).unwrap(), perm);
+    // Every vertex as the coarse set: the same functional map as ZoomOut's.
+    let all: Vec<usize> = (0..n).collect();
+    let same = zoomout_coarse_to_fine(phi, psi, &samples, c0.as_ref(), &o, Scope::Exact, &[], Some(&all)).unwrap();
+    let plain = zoomout(phi, psi, &samples, c0.as_ref(), &o, Scope::Exact).unwrap();
+    assert!((&same - &plain).norm_max() < 1e-10);
+    assert_eq!(
+        map_of_pullback_among(phi, psi, c0.as_ref(), &samples.vertices, &all).unwrap(),
+        map_of_pullback(phi, psi, c0.as_ref(), Some(&samples.vertices), Scope::Exact).unwrap()
+    );
+    // Coarse vertices out of range or none at all are errors.
+    let bad = zoomout_coarse_to_fine(phi, psi, &samples, c0.as_ref(), &o, Scope::Exact, &[], Some(&[n]));
+    assert!(bad.is_err());
+    assert!(zoomout_coarse_to_fine(phi, psi, &samples, c0.as_ref(), &o, Scope::Exact, &[], Some(&[])).is_err());
+}
+
 #[test]
 fn distortion_and_orientation_around_samples_estimate_the_whole() {
     let x = bumpy_sphere(4);

@@ -2,7 +2,7 @@
 
 use faer::{Mat, MatRef};
 
-use super::pullback::{map_of_pullback, pullback, sample_images_near, Scope};
+use super::pullback::{map_of_pullback, map_of_pullback_among, pullback, sample_images_near, Scope};
 use crate::error::{Error, Result};
 use crate::linalg::mul;
 use crate::pointwise::{nearest_neighbors_near, CoarseMap};
@@ -49,6 +49,30 @@ pub fn zoomout_pinned(
     scope: Scope,
     pins: &[(usize, usize)],
 ) -> Result<Mat<f64>> {
+    zoomout_coarse_to_fine(phi, psi, samples, c0, opts, scope, pins, None)
+}
+
+/// [`zoomout_pinned`] coarse to fine in Y: with `coarse` (well-spread vertices of Y, e.g.
+/// [`crate::prepared::PreparedShape::grid_vertices`]) every step but the last matches the
+/// samples among those vertices only ([`map_of_pullback_among`]), exactly there; the last step,
+/// whose point map the final pull-back C_yx (K × K) is fitted to, searches as `scope` says. The
+/// steps before the last only carry C_yx from size to size; their images lie within about one
+/// spacing of `coarse` of the full search's, a small error against the wavelengths of the first
+/// K eigenfunctions while `coarse` is dense enough (12,500 vertices: the last eigenfunction's
+/// wavelength at K = 110 is ≈ 19 spacings). Costs O(#samples · #coarse · k) per step instead of
+/// O(#samples · m · k). `None`: exactly [`zoomout_pinned`]. Errors as [`zoomout_pinned`], and
+/// for a coarse vertex out of range.
+#[allow(clippy::too_many_arguments)]
+pub fn zoomout_coarse_to_fine(
+    phi: MatRef<f64>,
+    psi: MatRef<f64>,
+    samples: &Samples,
+    c0: MatRef<f64>,
+    opts: &ZoomOutOptions,
+    scope: Scope,
+    pins: &[(usize, usize)],
+    coarse: Option<&[usize]>,
+) -> Result<Mat<f64>> {
     check_zoomout(phi, psi, c0, opts)?;
     let pinned = pin_positions(samples, pins, psi.nrows())?;
     let pin = |mut map: Vec<usize>| {
@@ -57,10 +81,15 @@ pub fn zoomout_pinned(
         }
         map
     };
+    // A step before the last (the next size still below K) searches among the coarse vertices.
+    let coarse_step = |c: MatRef<f64>| -> Option<&[usize]> { coarse.filter(|_| c.nrows() + opts.step < opts.k_final) };
     let (near, y_cells) = match scope {
         Scope::Exact => {
             return zoomout_loop(phi, psi, samples, c0.to_owned(), opts, |c| {
-                Ok(pin(map_of_pullback(phi, psi, c, Some(&samples.vertices), Scope::Exact)?))
+                Ok(pin(match coarse_step(c) {
+                    Some(refs) => map_of_pullback_among(phi, psi, c, &samples.vertices, refs)?,
+                    None => map_of_pullback(phi, psi, c, Some(&samples.vertices), Scope::Exact)?,
+                }))
             })
         }
         Scope::Near { near, x_cells, y_cells } => {
@@ -81,6 +110,11 @@ pub fn zoomout_pinned(
     let previous = std::cell::RefCell::new(None::<Vec<usize>>);
     zoomout_loop(phi, psi, samples, c0.to_owned(), opts, |c| {
         let mut prev = previous.borrow_mut();
+        if let Some(refs) = coarse_step(c) {
+            let map = pin(map_of_pullback_among(phi, psi, c, &samples.vertices, refs)?);
+            *prev = Some(map.clone());
+            return Ok(map);
+        }
         let (kx, ky) = (c.nrows(), c.ncols());
         let reference = mul(psi.subcols(0, ky), c.transpose());
         let map = match prev.as_ref() {
