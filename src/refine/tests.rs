@@ -81,6 +81,13 @@ fn coarse_to_fine_zoomout_recovers_a_permutation() {
         map_of_pullback_among(phi, psi, c0.as_ref(), &samples.vertices, &all).unwrap(),
         map_of_pullback(phi, psi, c0.as_ref(), Some(&samples.vertices), Scope::Exact).unwrap()
     );
+    // The same near a coarse map (the restricted searches of large pairs): the last step matches
+    // near the coarse steps' images.
+    let y_cells = farthest_point_samples(y.vertices(), &by.mass, 100).unwrap().vertices;
+    let near = Near { x: x.vertices(), y: y.vertices(), cells: 8 };
+    let scope = Scope::Near { near: &near, x_cells: &samples.vertices, y_cells: &y_cells };
+    let c = zoomout_coarse_to_fine(phi, psi, &samples, c0.as_ref(), &o, scope, &[], Some(&coarse)).unwrap();
+    assert_eq!(map_of_pullback(phi, psi, c.as_ref(), None, Scope::Exact).unwrap(), perm);
     // Coarse vertices out of range or none at all are errors.
     let bad = zoomout_coarse_to_fine(phi, psi, &samples, c0.as_ref(), &o, Scope::Exact, &[], Some(&[n]));
     assert!(bad.is_err());
