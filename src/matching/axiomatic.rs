@@ -597,51 +597,29 @@ impl ProbeContext<'_> {
         let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
         let (tx, py, ny) = (x.triangles(), y.positions(), y.normals());
         let o = ZoomOutOptions { k_final: p.probe.k_final.max(k), step: p.probe.step };
-        let (c, map) = match (self.near, self.probe_refs) {
+        // The probe samples matched near their previous images on large pairs, else exactly.
+        let scope = match (self.near, self.probe_refs) {
             (Some(near), Some(sy)) => {
-                let (xs, ys) = (&self.probe_samples.vertices, &sy.vertices);
-                let scope = Scope::Near { near, x_cells: xs, y_cells: ys };
-                let c = refine::zoomout_coarse_to_fine(
-                    phi,
-                    psi,
-                    self.probe_samples,
-                    c.as_ref(),
-                    &o,
-                    scope,
-                    self.pins,
-                    self.coarse,
-                )?;
-                let map = match self.patch {
-                    // The images of the patch; other entries stay 0 (unread).
-                    Some(patch) => {
-                        let images = refine::map_of_pullback(phi, psi, c.as_ref(), Some(patch), scope)?;
-                        spread(phi.nrows(), patch, &images)
-                    }
-                    None => refine::map_of_pullback(phi, psi, c.as_ref(), None, scope)?,
-                };
-                (c, map)
+                Scope::Near { near, x_cells: &self.probe_samples.vertices, y_cells: &sy.vertices }
             }
-            _ => {
-                let c = refine::zoomout_coarse_to_fine(
-                    phi,
-                    psi,
-                    self.probe_samples,
-                    c.as_ref(),
-                    &o,
-                    Scope::Exact,
-                    self.pins,
-                    self.coarse,
-                )?;
-                let map = match self.patch {
-                    Some(patch) => spread(
-                        phi.nrows(),
-                        patch,
-                        &refine::map_of_pullback(phi, psi, c.as_ref(), Some(patch), Scope::Exact)?,
-                    ),
-                    None => refine::map_of_pullback(phi, psi, c.as_ref(), None, Scope::Exact)?,
-                };
-                (c, map)
+            _ => Scope::Exact,
+        };
+        let c = refine::zoomout_coarse_to_fine(
+            phi,
+            psi,
+            self.probe_samples,
+            c.as_ref(),
+            &o,
+            scope,
+            self.pins,
+            self.coarse,
+        )?;
+        let map = match self.patch {
+            // The images of the patch; other entries stay 0 (unread).
+            Some(patch) => {
+                spread(phi.nrows(), patch, &refine::map_of_pullback(phi, psi, c.as_ref(), Some(patch), scope)?)
             }
+            None => refine::map_of_pullback(phi, psi, c.as_ref(), None, scope)?,
         };
         let mut candidate = Candidate::unscored(k);
         if let Some(l) = self.landmarks {

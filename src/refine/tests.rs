@@ -4,22 +4,29 @@ use crate::primitives::bumpy_sphere;
 use crate::shape::TriMesh;
 use crate::spatial::farthest_point_samples;
 use crate::spatial::Samples;
-use crate::spectral::{eigen_basis, SpectralOptions};
+use crate::spectral::{eigen_basis, Basis, SpectralOptions};
 use faer::Mat;
 
-#[test]
-fn zoomout_recovers_a_permutation_from_a_coarse_start_on_samples() {
+/// The bumpy sphere X (3 subdivisions), a copy Y with its vertices renumbered, the map X → Y
+/// (vertex i of X is vertex `perm[i]` of Y), its inverse, and both shapes' first k eigenpairs.
+fn permuted_pair(k: usize) -> (TriMesh, TriMesh, Vec<usize>, Vec<usize>, Basis, Basis) {
     let x = bumpy_sphere(3);
     let n = x.n_vertices();
-    let perm: Vec<usize> = (0..n).map(|i| (i * 101 + 7) % n).collect(); // vertex i of X is vertex perm[i] of Y
+    let perm: Vec<usize> = (0..n).map(|i| (i * 101 + 7) % n).collect();
     let mut inv = vec![0; n];
     for (i, &p) in perm.iter().enumerate() {
         inv[p] = i;
     }
     let y = x.permuted(&inv).unwrap();
-    assert_eq!(y.vertices()[perm[17]], x.vertices()[17]);
-    let basis = |m: &TriMesh| eigen_basis(&cotangent(m).unwrap(), &SpectralOptions::new(40), None).unwrap().0;
+    let basis = |m: &TriMesh| eigen_basis(&cotangent(m).unwrap(), &SpectralOptions::new(k), None).unwrap().0;
     let (bx, by) = (basis(&x), basis(&y));
+    (x, y, perm, inv, bx, by)
+}
+
+#[test]
+fn zoomout_recovers_a_permutation_from_a_coarse_start_on_samples() {
+    let (x, y, perm, inv, bx, by) = permuted_pair(40);
+    assert_eq!(y.vertices()[perm[17]], x.vertices()[17]);
     let (phi, psi) = (bx.eigenvectors.as_ref(), by.eigenvectors.as_ref());
     let full = pullback(phi, psi, &Samples::all(&bx.mass), &perm, 40, 40).unwrap();
     let c0 = full.submatrix(0, 0, 4, 4).to_owned();
@@ -50,16 +57,8 @@ fn zoomout_recovers_a_permutation_from_a_coarse_start_on_samples() {
 /// recovers the permutation. With every vertex as the coarse set it is plain ZoomOut.
 #[test]
 fn coarse_to_fine_zoomout_recovers_a_permutation() {
-    let x = bumpy_sphere(3);
+    let (x, y, perm, _, bx, by) = permuted_pair(40);
     let n = x.n_vertices();
-    let perm: Vec<usize> = (0..n).map(|i| (i * 101 + 7) % n).collect();
-    let mut inv = vec![0; n];
-    for (i, &p) in perm.iter().enumerate() {
-        inv[p] = i;
-    }
-    let y = x.permuted(&inv).unwrap();
-    let basis = |m: &TriMesh| eigen_basis(&cotangent(m).unwrap(), &SpectralOptions::new(40), None).unwrap().0;
-    let (bx, by) = (basis(&x), basis(&y));
     let (phi, psi) = (bx.eigenvectors.as_ref(), by.eigenvectors.as_ref());
     let full = pullback(phi, psi, &Samples::all(&bx.mass), &perm, 40, 40).unwrap();
     let c0 = full.submatrix(0, 0, 4, 4).to_owned();
@@ -128,16 +127,8 @@ fn distortion_and_orientation_around_samples_estimate_the_whole() {
 
 #[test]
 fn bijective_polish_repairs_a_noisy_map() {
-    let x = bumpy_sphere(3);
+    let (x, y, perm, _, bx, by) = permuted_pair(30);
     let n = x.n_vertices();
-    let perm: Vec<usize> = (0..n).map(|i| (i * 101 + 7) % n).collect();
-    let mut inv = vec![0; n];
-    for (i, &p) in perm.iter().enumerate() {
-        inv[p] = i;
-    }
-    let y = x.permuted(&inv).unwrap();
-    let basis = |m: &TriMesh| eigen_basis(&cotangent(m).unwrap(), &SpectralOptions::new(30), None).unwrap().0;
-    let (bx, by) = (basis(&x), basis(&y));
     let (phi, psi) = (bx.eigenvectors.as_ref(), by.eigenvectors.as_ref());
     let truth = pullback(phi, psi, &Samples::all(&bx.mass), &perm, 30, 30).unwrap();
     // A deterministic perturbation of the true map.
