@@ -438,6 +438,10 @@ pub(crate) struct PipelineArgs {
     /// Cells of the other shape searched around each sample's image (--near-above).
     #[arg(long, default_value_t = defaults().axiomatic.near.cells)]
     pub(crate) near_cells: usize,
+    /// Vertex pairs n·m above which the map Y → X (map_yx.npy) is searched near the samples'
+    /// map while the map X → Y is still exact (up to --near-above).
+    #[arg(long, default_value_t = defaults().axiomatic.near.inverse_above_pairs)]
+    pub(crate) near_inverse_above: u64,
     /// Which maps the axiomatic method looks for (orientation term and signed descriptors).
     #[arg(long, value_enum, default_value = "preserve")]
     pub(crate) orientation: OrientationChoice,

@@ -119,6 +119,11 @@ fn coarse_zoomout_default() -> bool {
 /// image of its own sample ([`crate::pointwise::nearest_neighbors_near`]). Below it, every
 /// search is exact. The exact searches cost O(n · m · k): 2·10¹³ flops for the 330-dimensional
 /// embedding of the polish at 250k vertices per shape, 10¹⁴ at 840k.
+///
+/// The point map Y → X, read off the final pull-back beside the map X → Y (for colour transfer
+/// and `map_yx`), is searched near the polish's samples' map from `inverse_above_pairs` on,
+/// even where the map X → Y is still exact: the one map the pipeline returns touches every
+/// vertex exactly, its inverse reading only near it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct NearSearch {
     /// n · m above which the search is restricted (the default 2·10⁹, about 45k × 45k vertices,
@@ -126,11 +131,21 @@ pub struct NearSearch {
     pub above_pairs: u64,
     /// Cells searched around the image of each sample.
     pub cells: usize,
+    /// n · m above which the map Y → X is searched near the samples' map (the default 6.25·10⁸,
+    /// 25k × 25k vertices, the size from which ZoomOut runs coarse to fine; every faust_r,
+    /// tosca_r and faust_lps pair stays exact).
+    #[serde(default = "inverse_above_pairs_default")]
+    pub inverse_above_pairs: u64,
+}
+
+/// The default of [`NearSearch::inverse_above_pairs`] (25k × 25k vertex pairs).
+fn inverse_above_pairs_default() -> u64 {
+    625_000_000
 }
 
 impl Default for NearSearch {
     fn default() -> Self {
-        NearSearch { above_pairs: 2_000_000_000, cells: 16 }
+        NearSearch { above_pairs: 2_000_000_000, cells: 16, inverse_above_pairs: inverse_above_pairs_default() }
     }
 }
 
@@ -250,8 +265,9 @@ pub struct AxiomaticResult {
     pub chosen: usize,
     /// (stage, seconds).
     pub stages: Vec<(String, f64)>,
-    /// The samples of X and Y of the final refinement when the final maps were searched near
-    /// them ([`NearSearch`]), for the map Y → X.
+    /// The samples of X and Y of the final refinement when the map Y → X is to be searched near
+    /// their map ([`NearSearch`]: the final maps were, or the pair has more than
+    /// `inverse_above_pairs` vertex pairs).
     pub near_samples: Option<(Samples, Samples)>,
     /// What the basin search's correction did (the correction of the candidate it started
     /// from; None without the search).
@@ -847,7 +863,12 @@ fn refine_from(
             };
             let (c, map) = refine::bijective_polish_pinned(phi, psi, &sx, &sy, c.as_ref(), p.polish, scope, pins)?;
             stages.push(("polish".to_string(), t.elapsed().as_secs_f64()));
-            Ok((Pullback(c), map, near.map(|_| (sx, sy))))
+            let pairs = (phi.nrows() as u64).saturating_mul(psi.nrows() as u64);
+            let inverse_near = p.refine.samples > 0
+                && x.positions().is_some()
+                && y.positions().is_some()
+                && (near.is_some() || pairs > p.near.inverse_above_pairs);
+            Ok((Pullback(c), map, inverse_near.then_some((sx, sy))))
         }
     }
 }
@@ -943,7 +964,8 @@ pub(super) mod tests {
     /// With every search of the pipeline restricted to the neighbourhood of the samples' maps
     /// (NearSearch forced on this 642-vertex pair, 100 probe and 200 refinement samples, 8
     /// cells), the maps X → Y and Y → X agree with those of the exact searches on ≥ 95 % of the
-    /// vertices and recover the true map.
+    /// vertices and recover the true map; with the map Y → X alone restricted, the map X → Y and
+    /// the pull-back are the exact searches' own.
     #[test]
     fn restricted_searches_agree_with_the_exact_ones() {
         use crate::matching::{run, MatchOptions, Method};
@@ -958,7 +980,7 @@ pub(super) mod tests {
             run(&x, &y, &f, &g, &o).unwrap()
         };
         let exact = run(&p);
-        p.near = NearSearch { above_pairs: 0, cells: 8 };
+        p.near = NearSearch { above_pairs: 0, cells: 8, ..Default::default() };
         let near = run(&p);
         let mut inverse = vec![0; truth.len()];
         for (i, &j) in truth.iter().enumerate() {
@@ -969,6 +991,15 @@ pub(super) mod tests {
         eprintln!("agreement with the exact searches: X → Y {xy:.3}, Y → X {yx:.3}; with the truth {txy:.3}, {tyx:.3}");
         assert!(xy >= 0.95 && yx >= 0.95, "{xy} {yx}");
         assert!(txy >= 0.95 && tyx >= 0.95, "{txy} {tyx}");
+        // The map Y → X alone restricted (`inverse_above_pairs`): the map X → Y and the
+        // pull-back stay those of the exact searches, the map back agrees with its exact reading.
+        p.near = NearSearch { above_pairs: u64::MAX, cells: 8, inverse_above_pairs: 0 };
+        let inverse_near = run(&p);
+        assert_eq!(inverse_near.map_xy, exact.map_xy);
+        assert_eq!(inverse_near.c, exact.c);
+        let (yx, tyx) = (agreement(&inverse_near.map_yx, &exact.map_yx), agreement(&inverse_near.map_yx, &inverse));
+        eprintln!("Y → X alone restricted: agreement with the exact search {yx:.3}, with the truth {tyx:.3}");
+        assert!(yx >= 0.95 && tyx >= 0.95, "{yx} {tyx}");
     }
 
     /// The completion method with the axiomatic prior (orientation on) finds the true map on the

@@ -347,6 +347,9 @@ match_settings! {
     near_above: u64,
     /// Cells searched around each sample's image.
     near_cells: usize,
+    /// Vertex pairs n·m above which the axiomatic method's map Y → X is searched near the
+    /// samples' map (the map X → Y stays exact up to `near_above`).
+    near_inverse_above: u64,
     /// X is a part of Y: true matches it with the partial path ([`super::partial`]), false as a
     /// whole shape; unset, the axiomatic method detects a part ([`super::partial::detect`]).
     partial: bool,
@@ -615,6 +618,7 @@ impl MatchSettings {
         a.near = NearSearch {
             above_pairs: self.near_above.unwrap_or(d.axiomatic.near.above_pairs),
             cells: self.near_cells.unwrap_or(d.axiomatic.near.cells),
+            inverse_above_pairs: self.near_inverse_above.unwrap_or(d.axiomatic.near.inverse_above_pairs),
         };
         let opts = MatchOptions {
             method,
