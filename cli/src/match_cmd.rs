@@ -140,16 +140,16 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     // The eigenpairs per shape: fewer where X cannot be a part and the data are the default WKS
     // (the partial path and descriptors such as wks:N read them all).
     let area = |l: &ShapeLaplacian| funcorr::prepared::area_of_mass(&l.laplacian.mass);
-    let partial = funcorr::matching::partial::may_be_partial(&lx.shape, area(&lx), &ly.shape, area(&ly), &opts.partial);
-    let lean = !partial && spec == PairDataSpec::WksRecipe;
-    let demand = settings.basis_demand_for(&opts, &Flags, lean)?;
-    let basis_k = demand.size;
-    for (path, shape) in [(&args.x, &lx.shape), (&args.y, &ly.shape)] {
-        if basis_k >= shape.n_vertices() {
-            let name = funcorr::error::escape_path(path);
-            return Err(settings.too_small(&name, shape.n_vertices(), &opts, &demand, &Flags));
-        }
-    }
+    let (name_x, name_y) = (funcorr::error::escape_path(&args.x), funcorr::error::escape_path(&args.y));
+    let basis_k = settings
+        .pair_basis_demand(
+            &opts,
+            &Flags,
+            (&lx.shape, area(&lx), Some(&name_x)),
+            (&ly.shape, area(&ly), Some(&name_y)),
+            spec == PairDataSpec::WksRecipe,
+        )?
+        .size;
     let (px, py) =
         rayon::join(|| lx.prepared(&args.cache, basis_k, &mut stx), || ly.prepared(&args.cache, basis_k, &mut sty));
     let (px, py) = (px?, py?);

@@ -169,20 +169,18 @@ fn match_shapes<'py>(
         }
         let ((shx, ax), (shy, ay)) = (shape_area(&lx), shape_area(&ly));
         // Fewer where X cannot be a part and the data are the default WKS or given (the partial
-        // path and descriptors such as wks:N read them all).
-        let partial = funcorr::matching::partial::may_be_partial(shx, ax, shy, ay, &opts_run.partial);
-        let lean = !partial
-            && matches!(data, Data::Given(..) | Data::Spec(funcorr::descriptors::spec::PairDataSpec::WksRecipe));
-        let demand = settings.basis_demand_for(&opts_run, &Keywords, lean)?;
-        let basis_k = demand.size;
-        for (l, name) in [(&lx, "X"), (&ly, "Y")] {
-            if let Laplacianed::Raw(raw) = l {
-                let shape = &raw.0;
-                if basis_k >= shape.n_vertices() {
-                    return Err(settings.too_small(name, shape.n_vertices(), &opts_run, &demand, &Keywords));
-                }
-            }
-        }
+        // path and descriptors such as wks:N read them all); the sides still to be computed are
+        // checked against it.
+        let to_compute = |l: &Laplacianed, name: &'static str| matches!(l, Laplacianed::Raw(_)).then_some(name);
+        let basis_k = settings
+            .pair_basis_demand(
+                &opts_run,
+                &Keywords,
+                (shx, ax, to_compute(&lx, "X")),
+                (shy, ay, to_compute(&ly, "Y")),
+                matches!(data, Data::Given(..) | Data::Spec(funcorr::descriptors::spec::PairDataSpec::WksRecipe)),
+            )?
+            .size;
         let prep = |l: Laplacianed| -> funcorr::Result<Arc<PreparedShape>> {
             match l {
                 Laplacianed::Ready(p) => Ok(p),

@@ -751,6 +751,34 @@ impl MatchSettings {
         }
     }
 
+    /// The eigenpairs per shape of a pair whose Laplacians are built:
+    /// [`MatchSettings::basis_demand_for`], lean (fewer) where X cannot be a part of Y
+    /// ([`super::partial::may_be_partial`] of the shapes as loaded, `x` and `y`, with their
+    /// areas Σ A) and the data are the default WKS recipe or given (`default_data`), since the
+    /// partial path and descriptors such as `wks:N` read every eigenpair. Each side whose basis is
+    /// still to be computed carries its name as the front end shows it (a side prepared already,
+    /// with its own basis, carries None and is not checked). What `funcorr match` and
+    /// `funcorr.match` decide between the Laplacians and the bases. Errors: as
+    /// [`MatchSettings::basis_demand_for`], and [`MatchSettings::too_small`] for a named side
+    /// with no more vertices than that.
+    pub fn pair_basis_demand(
+        &self,
+        opts: &MatchOptions,
+        sp: &dyn Spelling,
+        x: (&crate::shape::Shape, f64, Option<&str>),
+        y: (&crate::shape::Shape, f64, Option<&str>),
+        default_data: bool,
+    ) -> Result<BasisDemand> {
+        let lean = default_data && !super::partial::may_be_partial(x.0, x.1, y.0, y.1, &opts.partial);
+        let demand = self.basis_demand_for(opts, sp, lean)?;
+        for (shape, _, name) in [x, y] {
+            if let Some(name) = name.filter(|_| demand.size >= shape.n_vertices()) {
+                return Err(self.too_small(name, shape.n_vertices(), opts, &demand, sp));
+            }
+        }
+        Ok(demand)
+    }
+
     /// The error for the shape `shape` (its name as the front end shows it) of `n` vertices,
     /// too small for the `demand.size` eigenpairs per shape that the options ask for
     /// (`demand.size ≥ n`): it names every option that asks for n or more and the values that
@@ -1009,5 +1037,32 @@ mod tests {
         assert_eq!((d.size, d.key), (300, "zoomout_to"));
         let e = s.too_small("X", 250, &o, &d, &Keywords).to_string();
         assert!(e.contains("X has only n = 250 vertices") && e.contains("e.g. zoomout_to=249"), "{e}");
+    }
+
+    /// The eigenpairs of a pair ([`MatchSettings::pair_basis_demand`]): 128 for two whole
+    /// shapes with the default data, 200 where X may be a part or the data are not the default,
+    /// and the size error for a side still to be computed, not for a prepared one.
+    #[test]
+    fn a_pair_gets_the_eigenpairs_its_path_reads() {
+        let (big, small) = (crate::primitives::icosphere(3), crate::primitives::icosphere(2));
+        let (big, small) = (crate::shape::Shape::Mesh(big), crate::shape::Shape::Mesh(small));
+        assert!(big.n_vertices() > 200 && small.n_vertices() < 200, "{} {}", big.n_vertices(), small.n_vertices());
+        let s = MatchSettings::default();
+        let o = s.resolve(true).unwrap();
+        let size = |o: &MatchOptions, default_data: bool| {
+            s.pair_basis_demand(o, &Keywords, (&big, 1.0, Some("X")), (&big, 1.0, Some("Y")), default_data)
+                .unwrap()
+                .size
+        };
+        assert_eq!(size(&o, true), AXIOMATIC_BASIS_SIZE);
+        assert_eq!(size(&o, false), DEFAULT_BASIS_SIZE);
+        let mut always = o.clone();
+        always.partial.mode = PartialMode::Always;
+        assert_eq!(size(&always, true), DEFAULT_BASIS_SIZE);
+        // A side with fewer vertices than that: an error naming it, unless it is prepared already.
+        let e = s.pair_basis_demand(&o, &Keywords, (&big, 1.0, Some("X")), (&small, 1.0, Some("Y")), false);
+        assert!(e.unwrap_err().to_string().contains(&format!("Y has only n = {} vertices", small.n_vertices())));
+        let d = s.pair_basis_demand(&o, &Keywords, (&big, 1.0, Some("X")), (&small, 1.0, None), false).unwrap();
+        assert_eq!(d.size, DEFAULT_BASIS_SIZE);
     }
 }
