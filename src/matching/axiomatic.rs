@@ -22,6 +22,8 @@
 //! result, is a pull-back [`Pullback`] (C_yx, k × k, functions on Y → functions on X); the result
 //! is `map_xy` (for every vertex of X a vertex of Y) and its pull-back.
 
+use std::borrow::Cow;
+
 use faer::Mat;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -344,6 +346,20 @@ pub fn axiomatic_pipeline(
     g: &Descriptors,
     p: &AxiomaticPipeline,
 ) -> Result<AxiomaticResult> {
+    axiomatic_pipeline_cow(x, y, Cow::Borrowed(f), Cow::Borrowed(g), p)
+}
+
+/// [`axiomatic_pipeline`] with F and G borrowed or handed over: data handed over are released
+/// as soon as the pipeline has made its own (normalized, with the signed descriptors), so that
+/// they are not held through the refinement (at 10⁶ vertices the default WKS hold ≈ 0.34 GB per
+/// shape, and the polish sets the memory peak). The maps are the same either way.
+pub fn axiomatic_pipeline_cow(
+    x: &PreparedShape,
+    y: &PreparedShape,
+    f: Cow<'_, Descriptors>,
+    g: Cow<'_, Descriptors>,
+    p: &AxiomaticPipeline,
+) -> Result<AxiomaticResult> {
     if p.candidates.is_empty() || p.candidates.contains(&0) {
         return Err(Error::invalid("candidates", "need at least one functional-map size ≥ 1"));
     }
@@ -364,7 +380,8 @@ pub fn axiomatic_pipeline(
     let mut stages = Vec::new();
     let t = std::time::Instant::now();
     crate::progress::stage("descriptors")?;
-    let (fx, gy) = pipeline_data(x, y, f, g, p)?;
+    let (fx, gy) = pipeline_data(x, y, &f, &g, p)?;
+    drop((f, g));
     // User landmarks: their bumps join the data (module `landmarks`).
     let lm = LandmarkData::new(x, y, &p.landmarks)?;
     let (fx, gy) = match &lm {

@@ -20,6 +20,7 @@ pub mod search;
 
 pub use options::{BasisDemand, Keywords, MatchSettings, Spelling, Value, MATCH_OPTIONS};
 
+use std::borrow::Cow;
 use std::time::Instant;
 
 use faer::{Mat, MatRef};
@@ -590,6 +591,30 @@ pub fn run(
     g: &Descriptors,
     opts: &MatchOptions,
 ) -> Result<MatchResult> {
+    run_cow(x, y, Cow::Borrowed(f), Cow::Borrowed(g), opts)
+}
+
+/// [`run`] with the data F and G handed over: the default (axiomatic) method releases them as
+/// soon as it has made its own data from them ([`axiomatic::axiomatic_pipeline_cow`]), so a
+/// front end that needs them no more after the match (`funcorr match`) does not hold them
+/// through the refinement. The result is [`run`]'s.
+pub fn run_owned(
+    x: &crate::prepared::PreparedShape,
+    y: &crate::prepared::PreparedShape,
+    f: Descriptors,
+    g: Descriptors,
+    opts: &MatchOptions,
+) -> Result<MatchResult> {
+    run_cow(x, y, Cow::Owned(f), Cow::Owned(g), opts)
+}
+
+fn run_cow(
+    x: &crate::prepared::PreparedShape,
+    y: &crate::prepared::PreparedShape,
+    f: Cow<'_, Descriptors>,
+    g: Cow<'_, Descriptors>,
+    opts: &MatchOptions,
+) -> Result<MatchResult> {
     opts.validate()?;
     if opts.method != Method::Axiomatic {
         if opts.partial.mode == partial::PartialMode::Always {
@@ -614,15 +639,23 @@ pub fn run(
             _ => None,
         };
         let points = x.positions().zip(y.positions());
-        let r =
-            run_with_gradients(&x.basis, &y.basis, Some((&x.laplacian, &y.laplacian)), gradients, points, f, g, opts)?;
+        let r = run_with_gradients(
+            &x.basis,
+            &y.basis,
+            Some((&x.laplacian, &y.laplacian)),
+            gradients,
+            points,
+            &f,
+            &g,
+            opts,
+        )?;
         return Ok(in_input_units(r, x, y));
     }
     let detection = partial::detect(x, y, &opts.partial);
     if detection.partial {
-        return run_partial(x, y, f, g, opts, detection);
+        return run_partial(x, y, &f, &g, opts, detection);
     }
-    let r = axiomatic::axiomatic_pipeline(x, y, f, g, &opts.axiomatic)?;
+    let r = axiomatic::axiomatic_pipeline_cow(x, y, f, g, &opts.axiomatic)?;
     let mut stages = r.stages;
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
     // The map Y → X from the final pull-back, searched as the final map X → Y was.
