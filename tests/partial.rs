@@ -129,7 +129,7 @@ fn a_cut_copy_is_placed_on_its_whole_shape_with_its_coverage() {
     assert_eq!(r.partial.as_ref().unwrap().used_ratio, Some(det.area_ratio));
     let (ky, kx) = (r.c.nrows(), r.c.ncols());
     let wide = ((2.0 * det.area_ratio * ky as f64).ceil() as usize).min(x.basis.k());
-    assert!(ky == 110 && kx == wide, "C is {ky} × {kx}");
+    assert!(ky == 128 && kx == wide, "C is {ky} × {kx}");
 }
 
 /// Issue 28's test: the identity on ≥ 95 % of the part's vertices. Not met: the partial path's

@@ -405,7 +405,7 @@ pub(crate) struct PipelineArgs {
     /// Maximum number of ICP iterations.
     #[arg(long, default_value_t = defaults().icp.max_iterations)]
     pub(crate) icp_iterations: usize,
-    /// Final size of ZoomOut (default: 110 for axiomatic, 150 for the other methods).
+    /// Final size of ZoomOut (default: 128 for axiomatic, 150 for the other methods).
     #[arg(long)]
     pub(crate) zoomout_to: Option<usize>,
     /// Size increment per ZoomOut iteration (default: 5 for axiomatic, 1 for the others, as in

@@ -389,8 +389,8 @@ fn match_every_method_and_its_outputs() {
             "low-rank form (9)",
         ),
         (vec!["--method", "completion", "--optimizer", "rcg", "--mu4", "0.1", "-k", "10", "--kprime", "20"], "mu4"),
-        (vec!["--soft", "99999", "-k", "10", "--kprime", "120"], "--soft"),
-        (vec!["--view", "0", "-k", "10", "--kprime", "120"], "--view"),
+        (vec!["--soft", "99999", "-k", "10", "--kprime", "128"], "--soft"),
+        (vec!["--view", "0", "-k", "10", "--kprime", "128"], "--view"),
     ] {
         let mut args: Vec<String> = ["match", xs, ys, "--data", segs.as_str()].iter().map(|s| s.to_string()).collect();
         args.extend(extra.iter().map(|s| s.to_string()));
@@ -915,9 +915,9 @@ fn csv(path: &Path) -> Vec<Vec<String>> {
 }
 
 /// `funcorr bench --methods axiomatic --data wks` runs what `funcorr match X Y` runs: the same
-/// map, vertex for vertex (the bench computed 110 eigenpairs per shape, the axiomatic method's
-/// own need, where `match` computes 200 and its WKS use 128: 223 of 4999 vertices differed on a
-/// faust_r pair).
+/// map, vertex for vertex (written when the bench computed 110 eigenpairs per shape, the
+/// axiomatic method's own need then, where `match` computed 200 and its WKS used 128: 223 of
+/// 4999 vertices differed on a faust_r pair).
 #[test]
 fn bench_with_the_default_method_makes_the_match_map() {
     let ds = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/faust");
@@ -1907,11 +1907,11 @@ fn messages_name_what_the_user_gave() {
     // values that work (another method when no option of the default one fits).
     for (nu, nv, needles) in [
         (12, 10, &["--kprime (default 128 for a whole X)"][..]),
-        (10, 9, &["--kprime (default 128 for a whole X)", "--zoomout-to (default 110)"][..]),
+        (10, 9, &["--kprime (default 128 for a whole X)", "--zoomout-to (default 128)"][..]),
         (
             10,
             6,
-            &["--method fmap", "--kprime (default 128 for a whole X)", "--zoomout-to (default 110)", "size selection"]
+            &["--method fmap", "--kprime (default 128 for a whole X)", "--zoomout-to (default 128)", "size selection"]
                 [..],
         ),
     ] {

@@ -106,7 +106,7 @@ def test_match_options_are_checked_before_any_work(mesh_x):
         funcorr.match(X, X, candidates=[0, 10])
     with pytest.raises(ValueError, match="zoomout_step"):
         funcorr.match(X, X, zoomout_step=0)
-    with pytest.raises(ValueError, match="kprime: 20 eigenpairs per shape are fewer than the 110"):
+    with pytest.raises(ValueError, match="kprime: 20 eigenpairs per shape are fewer than the 128"):
         funcorr.match(X, X, kprime=20)
     with pytest.raises(ValueError, match="w_orientation: must be finite and ≥ 0"):
         funcorr.match(X, X, w_orientation=-1.0)

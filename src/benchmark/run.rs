@@ -28,8 +28,8 @@ pub struct BenchOptions {
     /// Eigenpairs computed per shape: at least what every method needs (its
     /// [`MatchOptions::basis_size`]); a front end gives the number its `match` command computes
     /// for the same options (e.g. `MatchSettings::basis_demand`) so that the bench runs exactly
-    /// the maps `match` makes (the default WKS use up to 128 eigenpairs, more than the axiomatic
-    /// method's own 110). None: what the methods need.
+    /// the maps `match` makes (e.g. 200 where X may be a part or the data read the whole basis,
+    /// more than the axiomatic method's own 128). None: what the methods need.
     pub eigenpairs: Option<usize>,
 }
 

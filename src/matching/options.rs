@@ -335,7 +335,7 @@ match_settings! {
     refine_k: usize,
     /// ICP iterations (default 10).
     icp_iterations: usize,
-    /// Final size of ZoomOut (default 110 for the axiomatic method, 150 for the others).
+    /// Final size of ZoomOut (default 128 for the axiomatic method, 150 for the others).
     zoomout_to: usize,
     /// ZoomOut's size increment (default 5 for the axiomatic method, 1 for the others).
     zoomout_step: usize,
@@ -740,7 +740,7 @@ impl MatchSettings {
         }
         let parts = self.demands(opts, sp);
         match parts.iter().max_by_key(|d| d.size) {
-            Some(d) if d.size >= AXIOMATIC_BASIS_SIZE => {
+            Some(d) if d.size > AXIOMATIC_BASIS_SIZE => {
                 Ok(BasisDemand { size: d.size, who: d.who.clone(), key: d.key.unwrap_or("kprime") })
             }
             _ => Ok(BasisDemand {
@@ -1028,7 +1028,7 @@ mod tests {
         let s = MatchSettings { kprime: Some(20), ..Default::default() };
         let e = s.basis_demand(&s.resolve(true).unwrap(), &Keywords).unwrap_err().to_string();
         assert!(
-            e.contains("20 eigenpairs per shape are fewer than the 110 that zoomout_to (default 110) needs"),
+            e.contains("20 eigenpairs per shape are fewer than the 128 that zoomout_to (default 128) needs"),
             "{e}"
         );
         let s = MatchSettings { method: Some(Method::Fmap), zoomout_to: Some(300), ..Default::default() };

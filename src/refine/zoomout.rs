@@ -59,7 +59,7 @@ pub fn zoomout_pinned(
 /// steps before the last only carry C_yx from size to size; their images lie within about one
 /// spacing of `coarse` of the full search's, a small error against the wavelengths of the first
 /// K eigenfunctions while `coarse` is dense enough (12,500 vertices: the last eigenfunction's
-/// wavelength at K = 110 is ≈ 19 spacings). Costs O(#samples · #coarse · k) per step instead of
+/// wavelength at K = 128 is ≈ 18 spacings). Costs O(#samples · #coarse · k) per step instead of
 /// O(#samples · m · k). `None`: exactly [`zoomout_pinned`]. Errors as [`zoomout_pinned`], and
 /// for a coarse vertex out of range.
 #[allow(clippy::too_many_arguments)]
