@@ -53,4 +53,4 @@ def test_every_key_is_a_keyword_and_nothing_else():
     with pytest.raises(ValueError, match="mu1: must be finite, got inf"):
         _funcorr.match_basis_size("wks", {"mu1": float("inf")})
     assert _funcorr.match_basis_size("wks", {"method": "fmap", "zoomout_to": 300}) == 300
-    assert _funcorr.match_basis_size("wks", {"kprime": 120}) == 120
+    assert _funcorr.match_basis_size("wks", {"kprime": 130}) == 130
