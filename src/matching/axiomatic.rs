@@ -356,7 +356,8 @@ pub fn axiomatic_pipeline(
 /// [`axiomatic_pipeline`] with F and G borrowed or handed over: data handed over are released
 /// as soon as the pipeline has made its own (normalized, with the signed descriptors), so that
 /// they are not held through the refinement (at 10⁶ vertices the default WKS hold ≈ 0.34 GB per
-/// shape, and the polish sets the memory peak). The maps are the same either way.
+/// shape; held through the polish they set its memory peak, BENCHMARKS.md). The maps are the
+/// same either way.
 pub fn axiomatic_pipeline_cow(
     x: &PreparedShape,
     y: &PreparedShape,
@@ -1021,6 +1022,25 @@ pub(super) mod tests {
         let (yx, tyx) = (agreement(&inverse_near.map_yx, &exact.map_yx), agreement(&inverse_near.map_yx, &inverse));
         eprintln!("Y → X alone restricted: agreement with the exact search {yx:.3}, with the truth {tyx:.3}");
         assert!(yx >= 0.95 && tyx >= 0.95, "{yx} {tyx}");
+    }
+
+    /// Data handed over (`matching::run_owned`, released inside the pipeline) give the match of
+    /// borrowed data (`matching::run`): the same maps both ways and the same C.
+    #[test]
+    fn handed_over_data_give_the_borrowed_data_match() {
+        use crate::matching::{run, run_owned, MatchOptions, Method};
+        let (x, y, _, _) = pair();
+        let r = WksRecipe::default();
+        let (f, g) = (wks_recipe(&x.basis, &r).unwrap(), wks_recipe(&y.basis, &r).unwrap());
+        let mut p = AxiomaticPipeline::default();
+        p.probe.samples = 100;
+        p.refine.samples = 200;
+        let o = MatchOptions { method: Method::Axiomatic, axiomatic: p, ..MatchOptions::default() };
+        let borrowed = run(&x, &y, &f, &g, &o).unwrap();
+        let owned = run_owned(&x, &y, f, g, &o).unwrap();
+        assert_eq!(owned.map_xy, borrowed.map_xy);
+        assert_eq!(owned.map_yx, borrowed.map_yx);
+        assert_eq!(owned.c, borrowed.c);
     }
 
     /// The completion method with the axiomatic prior (orientation on) finds the true map on the
