@@ -134,11 +134,11 @@ fn a_cut_copy_is_placed_on_its_whole_shape_with_its_coverage() {
 
 /// Issue 28's test: the identity on ≥ 95 % of the part's vertices. Not met: the partial path's
 /// reading ([`funcorr::matching::partial`], step 4) holds the basin on the benchmark pairs but
-/// does not pull the map onto the exact vertices (measured: 32.2 % exactly, 62.2 % up to one
-/// edge, 36.6 % / 68.4 % before the orientation operators were put in Y's units; ZoomOut's reading for the final refinement gets 69.7 % here but loses the basin on
+/// does not pull the map onto the exact vertices (measured: 32.8 % exactly, 62.6 % up to one
+/// edge with the final ZoomOut to 128; 32.2 % / 62.2 % with 110; 36.6 % / 68.4 % before the orientation operators were put in Y's units; ZoomOut's reading for the final refinement gets 69.7 % here but loses the basin on
 /// faust_r_partial pairs, EXPERIMENTS.md).
 #[test]
-#[ignore = "not met yet: 32.2 % of the vertices exactly (issue 28 asks 95 %), EXPERIMENTS.md"]
+#[ignore = "not met yet: 32.8 % of the vertices exactly (issue 28 asks 95 %), EXPERIMENTS.md"]
 fn a_cut_copy_recovers_the_identity() {
     let (orig, x, y, _, r) = cut_copy_match();
     let n = x.n();
