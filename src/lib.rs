@@ -22,6 +22,7 @@
 pub mod alloc;
 pub mod benchmark;
 pub mod cell_quadrature;
+pub mod certified_search;
 pub(crate) mod cholesky;
 pub mod cloud;
 pub mod completion;

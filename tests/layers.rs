@@ -30,6 +30,7 @@ const LAYERS: &[(&str, f64)] = &[
     ("fmap", 6.0),
     ("completion", 6.1),
     ("pointwise", 7.0),
+    ("certified_search", 7.05),
     ("refine", 7.1),
     ("matching", 7.2),
     ("eval", 8.0),
