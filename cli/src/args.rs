@@ -442,6 +442,10 @@ pub(crate) struct PipelineArgs {
     /// map while the map X → Y is still exact (up to --near-above).
     #[arg(long, default_value_t = defaults().axiomatic.near.inverse_above_pairs)]
     pub(crate) near_inverse_above: u64,
+    /// Vertex pairs n·m up to which the final map X → Y, where searched near the samples' map, is
+    /// made exact by a certificate (bounds rule out the cells of Y that cannot hold a nearer vertex).
+    #[arg(long, default_value_t = defaults().axiomatic.near.certified_up_to)]
+    pub(crate) near_certified_up_to: u64,
     /// Which maps the axiomatic method looks for (orientation term and signed descriptors).
     #[arg(long, value_enum, default_value = "preserve")]
     pub(crate) orientation: OrientationChoice,

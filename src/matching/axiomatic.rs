@@ -123,7 +123,9 @@ fn coarse_zoomout_default() -> bool {
 /// one-rings only; and every point map (those one-rings, the final X → Y and Y → X maps) matches
 /// each vertex among the vertices of the other shape in the `cells` Voronoi cells nearest to the
 /// image of its own sample ([`crate::pointwise::nearest_neighbors_near`]). Below it, every
-/// search is exact. The exact searches cost O(n · m · k): 2·10¹³ flops for the 330-dimensional
+/// search is exact. Up to `certified_up_to` vertex pairs the final map X → Y searched that way
+/// is then made exact: a certificate checks every restricted answer against every vertex of Y by
+/// bounds and corrects it ([`crate::certified_search`]). The exact searches cost O(n · m · k): 2·10¹³ flops for the 330-dimensional
 /// embedding of the polish at 250k vertices per shape, 10¹⁴ at 840k.
 ///
 /// The point map Y → X, read off the final pull-back beside the map X → Y (for colour transfer
@@ -142,6 +144,21 @@ pub struct NearSearch {
     /// tosca_r and faust_lps pair stays exact).
     #[serde(default = "inverse_above_pairs_default")]
     pub inverse_above_pairs: u64,
+    /// n · m up to which the final map X → Y, where it is searched near the samples' map, is
+    /// made exact by a certificate ([`crate::certified_search`]: bounds rule out the cells of Y
+    /// that cannot hold a nearer row, the rest is searched). The default 10¹⁰ (100k × 100k
+    /// vertices) makes the final map of every dev and benchmark pair (up to tosca_hires' 52k)
+    /// equal to the exact search's; above, the certificate costs more than the 3-minute budget
+    /// of a 10⁶-vertex pair allows (47.6 s at 840k, EXPERIMENTS.md "A provably exact final
+    /// map"), and the map stays restricted. The map Y → X is never certified (1.0 s more at
+    /// 28k, 1.1 s at 52k).
+    #[serde(default = "certified_up_to_default")]
+    pub certified_up_to: u64,
+}
+
+/// The default of [`NearSearch::certified_up_to`] (10⁵ × 10⁵ vertex pairs).
+fn certified_up_to_default() -> u64 {
+    10_000_000_000
 }
 
 /// The default of [`NearSearch::inverse_above_pairs`] (25k × 25k vertex pairs).
@@ -151,7 +168,12 @@ fn inverse_above_pairs_default() -> u64 {
 
 impl Default for NearSearch {
     fn default() -> Self {
-        NearSearch { above_pairs: 2_000_000_000, cells: 16, inverse_above_pairs: inverse_above_pairs_default() }
+        NearSearch {
+            above_pairs: 2_000_000_000,
+            cells: 16,
+            inverse_above_pairs: inverse_above_pairs_default(),
+            certified_up_to: certified_up_to_default(),
+        }
     }
 }
 
@@ -414,7 +436,8 @@ pub fn axiomatic_pipeline_cow(
                 && p.probe.samples > 0
                 && p.refine.samples > 0 =>
         {
-            Some(refine::Near { x: px, y: py, cells: p.near.cells })
+            let pairs = (px.len() as u64).saturating_mul(py.len() as u64);
+            Some(refine::Near { x: px, y: py, cells: p.near.cells, certify: pairs <= p.near.certified_up_to })
         }
         _ => None,
     };
@@ -1015,7 +1038,7 @@ pub(super) mod tests {
         assert!(txy >= 0.95 && tyx >= 0.95, "{txy} {tyx}");
         // The map Y → X alone restricted (`inverse_above_pairs`): the map X → Y and the
         // pull-back stay those of the exact searches, the map back agrees with its exact reading.
-        p.near = NearSearch { above_pairs: u64::MAX, cells: 8, inverse_above_pairs: 0 };
+        p.near = NearSearch { above_pairs: u64::MAX, cells: 8, inverse_above_pairs: 0, ..Default::default() };
         let inverse_near = run(&p);
         assert_eq!(inverse_near.map_xy, exact.map_xy);
         assert_eq!(inverse_near.c, exact.c);

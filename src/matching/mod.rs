@@ -661,7 +661,9 @@ fn run_cow(
     // The map Y → X from the final pull-back, searched as the final map X → Y was.
     let mut map_yx = timed(&mut stages, "map Y → X", || match (&r.near_samples, x.positions(), y.positions()) {
         (Some((sx, sy)), Some(px), Some(py)) => {
-            let near = crate::refine::Near { x: px, y: py, cells: opts.axiomatic.near.cells };
+            // Read near the map X → Y, not certified (NearSearch::certified_up_to is for the
+            // map the pipeline returns; certifying this one too costs 1.0 s at 28k vertices).
+            let near = crate::refine::Near { x: px, y: py, cells: opts.axiomatic.near.cells, certify: false };
             let scope = crate::refine::Scope::Near { near: &near, x_cells: &sx.vertices, y_cells: &sy.vertices };
             crate::refine::map_yx_of_pullback(phi, psi, r.c_yx.as_ref(), scope)
         }

@@ -350,6 +350,9 @@ match_settings! {
     /// Vertex pairs n·m above which the axiomatic method's map Y → X is searched near the
     /// samples' map (the map X → Y stays exact up to `near_above`).
     near_inverse_above: u64,
+    /// Vertex pairs n·m up to which the axiomatic method's final map X → Y, where it is searched
+    /// near the samples' map, is made exact by a certificate (`crate::certified_search`).
+    near_certified_up_to: u64,
     /// X is a part of Y: true matches it with the partial path ([`super::partial`]), false as a
     /// whole shape; unset, the axiomatic method detects a part ([`super::partial::detect`]).
     partial: bool,
@@ -619,6 +622,7 @@ impl MatchSettings {
             above_pairs: self.near_above.unwrap_or(d.axiomatic.near.above_pairs),
             cells: self.near_cells.unwrap_or(d.axiomatic.near.cells),
             inverse_above_pairs: self.near_inverse_above.unwrap_or(d.axiomatic.near.inverse_above_pairs),
+            certified_up_to: self.near_certified_up_to.unwrap_or(d.axiomatic.near.certified_up_to),
         };
         let opts = MatchOptions {
             method,

@@ -5,7 +5,7 @@
 use faer::{Mat, MatRef, Side};
 use serde::{Deserialize, Serialize};
 
-use super::pullback::{rows_near, sample_images_near, Near, Scope};
+use super::pullback::{rows_near_exact, sample_images_near, Near, Scope};
 use crate::error::{Error, Result};
 use crate::linalg::{gather_rows, gather_rows_into, mul};
 use crate::pointwise::nearest_neighbors;
@@ -193,7 +193,7 @@ fn bijective_map_near(
     let reference = bijective_reference(psi, c_yx, c_xy, w, &all_y, 0.5);
     let query = phi.subcols(0, c_yx.nrows());
     let images = sample_images_near(reference.as_ref(), query, sx, y_cells, near)?;
-    rows_near(reference.as_ref(), query, near, (sx, &images, y_cells), &all_x)
+    rows_near_exact(reference.as_ref(), query, near, (sx, &images, y_cells), &all_x)
 }
 
 /// Pins ([`bijective_polish_pinned`]) as positions in the samples of both shapes: (position in
@@ -411,7 +411,7 @@ mod tests {
         let pos = |p: &Mat<f64>| (0..p.nrows()).map(|i| [p[(i, 0)], p[(i, 1)], p[(i, 2)]]).collect::<Vec<_>>();
         let (px, py) = (pos(&px), pos(&py));
         let (sx, y_cells): (Vec<usize>, Vec<usize>) = ((0..n).step_by(20).collect(), (0..m).step_by(25).collect());
-        let near = Near { x: &px, y: &py, cells: y_cells.len() };
+        let near = Near { x: &px, y: &py, cells: y_cells.len(), certify: false };
         for w in [1.0, 0.0] {
             let exact = bijective_map(phi.as_ref(), psi.as_ref(), c_yx.as_ref(), c_xy.as_ref(), w, None, None).unwrap();
             let restricted =
@@ -419,6 +419,30 @@ mod tests {
                     .unwrap();
             assert_eq!(restricted, exact, "w = {w}");
         }
+    }
+
+    /// The restricted polish searching one cell of Y per query (so that many answers are wrong)
+    /// gives the exact search's map once certified ([`crate::certified_search`]).
+    #[test]
+    fn the_certified_restricted_map_is_the_exact_map() {
+        let mut rng = crate::rng::Normal::new(9);
+        let (n, m, k) = (400, 500, 6);
+        let mut g = |r: usize, c: usize, s: f64| Mat::from_fn(r, c, |_, _| s * rng.sample());
+        let (phi, psi, c_yx) = (g(n, k + 3, 1.0), g(m, k + 3, 1.0), g(k, k, 1.0));
+        let c_xy = c_yx.transpose().to_owned() + g(k, k, 0.2);
+        let (px, py) = (g(n, 3, 1.0), g(m, 3, 1.0));
+        let pos = |p: &Mat<f64>| (0..p.nrows()).map(|i| [p[(i, 0)], p[(i, 1)], p[(i, 2)]]).collect::<Vec<_>>();
+        let (px, py) = (pos(&px), pos(&py));
+        let (sx, y_cells): (Vec<usize>, Vec<usize>) = ((0..n).step_by(20).collect(), (0..m).step_by(25).collect());
+        let exact = bijective_map(phi.as_ref(), psi.as_ref(), c_yx.as_ref(), c_xy.as_ref(), 1.0, None, None).unwrap();
+        let run = |certify: bool| {
+            let near = Near { x: &px, y: &py, cells: 1, certify };
+            bijective_map_near(phi.as_ref(), psi.as_ref(), c_yx.as_ref(), c_xy.as_ref(), 1.0, &sx, &y_cells, &near)
+                .unwrap()
+        };
+        let wrong = run(false).iter().zip(&exact).filter(|(a, b)| a != b).count();
+        assert!(wrong > n / 10, "only {wrong} of {n} restricted answers differ: the test needs wrong ones");
+        assert_eq!(run(true), exact);
     }
 
     #[test]

@@ -83,7 +83,7 @@ fn coarse_to_fine_zoomout_recovers_a_permutation() {
     // The same near a coarse map (the restricted searches of large pairs): the last step matches
     // near the coarse steps' images.
     let y_cells = farthest_point_samples(y.vertices(), &by.mass, 100).unwrap().vertices;
-    let near = Near { x: x.vertices(), y: y.vertices(), cells: 8 };
+    let near = Near { x: x.vertices(), y: y.vertices(), cells: 8, certify: false };
     let scope = Scope::Near { near: &near, x_cells: &samples.vertices, y_cells: &y_cells };
     let c = zoomout_coarse_to_fine(phi, psi, &samples, c0.as_ref(), &o, scope, &[], Some(&coarse)).unwrap();
     assert_eq!(map_of_pullback(phi, psi, c.as_ref(), None, Scope::Exact).unwrap(), perm);
@@ -174,7 +174,7 @@ fn finer_levels_keep_the_exact_map() {
     let sx = farthest_point_samples(&px, &mass, 10).unwrap().vertices;
     let sy = farthest_point_samples(&py, &mass, 10).unwrap().vertices;
     let images: Vec<usize> = sx.iter().map(|&s| truth[s]).collect();
-    let near = pullback::Near { x: &px, y: &py, cells: 4 };
+    let near = pullback::Near { x: &px, y: &py, cells: 4, certify: false };
     let all: Vec<usize> = (0..n).collect();
     let levels = pullback::rows_near(reference.as_ref(), query.as_ref(), &near, (&sx, &images, &sy), &all).unwrap();
     let agree = levels.iter().zip(&exact).filter(|(a, b)| a == b).count();
