@@ -476,13 +476,8 @@ fn bound_run(level: &Level, run: Range<usize>, queries: MatRef<f64>, qn2: &[f64]
 }
 
 /// The leaves that some query of a group cannot rule out with the squared thresholds `limit2`,
-/// each with its bounds LB² (one per query), found top down; and the number of cells bounded.
-fn candidate_leaves(
-    tree: &CellTree,
-    queries: MatRef<f64>,
-    qn2: &[f64],
-    limit2: &[f64],
-) -> (Vec<(usize, Vec<f64>)>, u64) {
+/// found top down; and the number of cells bounded.
+fn candidate_leaves(tree: &CellTree, queries: MatRef<f64>, qn2: &[f64], limit2: &[f64]) -> (Vec<usize>, u64) {
     let top: Range<usize> = 0..tree.levels[0].cells.len();
     let mut runs: Vec<Range<usize>> = std::iter::once(top).collect();
     let mut bounded = 0u64;
@@ -495,7 +490,7 @@ fn candidate_leaves(
             bound_run(level, run, queries, qn2, |t, lb2| {
                 if lb2.iter().zip(limit2).any(|(b, l)| b <= l) {
                     if l + 1 == depth {
-                        leaves.push((t, lb2.to_vec()));
+                        leaves.push(t);
                     } else {
                         next.push(level.cells[t].children.clone());
                     }
@@ -609,8 +604,7 @@ pub fn certify_nearest_rows(
             // Then one descent with those thresholds, and every leaf it leaves that was not read.
             let limit2: Vec<f64> = thresholds(&best).iter().map(|x| x * x).collect();
             let (leaves, bounded) = candidate_leaves(&tree, queries.as_ref(), &qn2, &limit2);
-            let rest: Vec<usize> =
-                leaves.into_iter().map(|(t, _)| t).filter(|t| own.binary_search(t).is_err()).collect();
+            let rest: Vec<usize> = leaves.into_iter().filter(|t| own.binary_search(t).is_err()).collect();
             let (found, r2) = if rest.is_empty() { (best.clone(), 0) } else { search(&rest, &best)? };
             let pairs = group.iter().zip(found).map(|(&s, j)| (s, j)).collect();
             let read = r1 + r2;

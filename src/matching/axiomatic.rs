@@ -125,8 +125,9 @@ fn coarse_zoomout_default() -> bool {
 /// image of its own sample ([`crate::pointwise::nearest_neighbors_near`]). Below it, every
 /// search is exact. Up to `certified_up_to` vertex pairs the final map X → Y searched that way
 /// is then made exact: a certificate checks every restricted answer against every vertex of Y by
-/// bounds and corrects it ([`crate::certified_search`]). The exact searches cost O(n · m · k): 2·10¹³ flops for the 330-dimensional
-/// embedding of the polish at 250k vertices per shape, 10¹⁴ at 840k.
+/// bounds and corrects it ([`crate::certified_search`]). The exact searches cost O(n · m · k):
+/// 2·10¹³ flops for the 330-dimensional embedding of the polish at 250k vertices per shape,
+/// 10¹⁴ at 840k.
 ///
 /// The point map Y → X, read off the final pull-back beside the map X → Y (for colour transfer
 /// and `map_yx`), is searched near the polish's samples' map from `inverse_above_pairs` on,

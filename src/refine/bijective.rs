@@ -398,19 +398,44 @@ mod tests {
             .sum()
     }
 
-    /// The restricted polish (query rows Φ read in place, the reference ×½) searching every cell
-    /// of Y gives the exact search's map on the full embeddings ([2 Φ_i, 0] and [b_j, c_j]).
-    #[test]
-    fn the_restricted_map_over_every_cell_is_the_exact_map() {
-        let mut rng = crate::rng::Normal::new(8);
+    /// A random polish problem: Φ (400 × 9), Ψ (500 × 9), C_yx (6 × 6), C_xy near C_yxᵀ, random
+    /// positions of both shapes, every 20th vertex of X as a sample and every 25th of Y as a cell.
+    struct RandomPolish {
+        phi: Mat<f64>,
+        psi: Mat<f64>,
+        c_yx: Mat<f64>,
+        c_xy: Mat<f64>,
+        px: Vec<[f64; 3]>,
+        py: Vec<[f64; 3]>,
+        sx: Vec<usize>,
+        y_cells: Vec<usize>,
+    }
+
+    fn random_polish(seed: u64) -> RandomPolish {
+        let mut rng = crate::rng::Normal::new(seed);
         let (n, m, k) = (400, 500, 6);
         let mut g = |r: usize, c: usize, s: f64| Mat::from_fn(r, c, |_, _| s * rng.sample());
         let (phi, psi, c_yx) = (g(n, k + 3, 1.0), g(m, k + 3, 1.0), g(k, k, 1.0));
         let c_xy = c_yx.transpose().to_owned() + g(k, k, 0.2);
-        let (px, py) = (g(n, 3, 1.0), g(m, 3, 1.0));
-        let pos = |p: &Mat<f64>| (0..p.nrows()).map(|i| [p[(i, 0)], p[(i, 1)], p[(i, 2)]]).collect::<Vec<_>>();
-        let (px, py) = (pos(&px), pos(&py));
-        let (sx, y_cells): (Vec<usize>, Vec<usize>) = ((0..n).step_by(20).collect(), (0..m).step_by(25).collect());
+        let pos = |p: Mat<f64>| (0..p.nrows()).map(|i| [p[(i, 0)], p[(i, 1)], p[(i, 2)]]).collect::<Vec<_>>();
+        let (px, py) = (pos(g(n, 3, 1.0)), pos(g(m, 3, 1.0)));
+        RandomPolish {
+            phi,
+            psi,
+            c_yx,
+            c_xy,
+            px,
+            py,
+            sx: (0..n).step_by(20).collect(),
+            y_cells: (0..m).step_by(25).collect(),
+        }
+    }
+
+    /// The restricted polish (query rows Φ read in place, the reference ×½) searching every cell
+    /// of Y gives the exact search's map on the full embeddings ([2 Φ_i, 0] and [b_j, c_j]).
+    #[test]
+    fn the_restricted_map_over_every_cell_is_the_exact_map() {
+        let RandomPolish { phi, psi, c_yx, c_xy, px, py, sx, y_cells } = random_polish(8);
         let near = Near { x: &px, y: &py, cells: y_cells.len(), certify: false };
         for w in [1.0, 0.0] {
             let exact = bijective_map(phi.as_ref(), psi.as_ref(), c_yx.as_ref(), c_xy.as_ref(), w, None, None).unwrap();
@@ -425,15 +450,8 @@ mod tests {
     /// gives the exact search's map once certified ([`crate::certified_search`]).
     #[test]
     fn the_certified_restricted_map_is_the_exact_map() {
-        let mut rng = crate::rng::Normal::new(9);
-        let (n, m, k) = (400, 500, 6);
-        let mut g = |r: usize, c: usize, s: f64| Mat::from_fn(r, c, |_, _| s * rng.sample());
-        let (phi, psi, c_yx) = (g(n, k + 3, 1.0), g(m, k + 3, 1.0), g(k, k, 1.0));
-        let c_xy = c_yx.transpose().to_owned() + g(k, k, 0.2);
-        let (px, py) = (g(n, 3, 1.0), g(m, 3, 1.0));
-        let pos = |p: &Mat<f64>| (0..p.nrows()).map(|i| [p[(i, 0)], p[(i, 1)], p[(i, 2)]]).collect::<Vec<_>>();
-        let (px, py) = (pos(&px), pos(&py));
-        let (sx, y_cells): (Vec<usize>, Vec<usize>) = ((0..n).step_by(20).collect(), (0..m).step_by(25).collect());
+        let RandomPolish { phi, psi, c_yx, c_xy, px, py, sx, y_cells } = random_polish(9);
+        let n = phi.nrows();
         let exact = bijective_map(phi.as_ref(), psi.as_ref(), c_yx.as_ref(), c_xy.as_ref(), 1.0, None, None).unwrap();
         let run = |certify: bool| {
             let near = Near { x: &px, y: &py, cells: 1, certify };
