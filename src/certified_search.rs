@@ -20,9 +20,16 @@
 //! A cell with LB(q, C) above the distance from q to its current answer (plus a rounding slack)
 //! holds no nearer row. Queries go in groups of neighbouring vertices (k-d leaves of at most
 //! [`GROUP_ROWS`]): a group first reads the leaves that hold its answers (a neighbour's answer
-//! tightens a wrong one's threshold), then descends the tree, bounding every query against each
-//! run of children in one product, and reads every leaf that some query cannot rule out. The
-//! rows read, with the answers, are searched exactly.
+//! tightens a wrong one's threshold), then descends the tree and reads every leaf that some query
+//! cannot rule out. At each run of children the group's centre c is bounded first: LB(·, C) is
+//! the distance to a set, so LB(q, C) ≥ LB(c, C) − ‖q − c‖, and a cell with LB(c, C) above
+//! max over the group of ‖q − c‖ + threshold(q) is out for every query at the cost of one; the
+//! cells left are bounded for every query in one product. The rows read, with the answers, are
+//! searched exactly.
+//!
+//! **Layout.** The reference rows are put in the tree's order in place for the duration of the
+//! call, so that every cell is a block of consecutive rows: the cells' statistics and the exact
+//! searches read the embedding in streams, without copies.
 //!
 //! **Why a subspace and not a ball.** A cell's rows are a patch of a smooth surface embedded in
 //! R^d; a handful of directions (the patch's tangent plane and curvature) hold it to a tiny
@@ -34,16 +41,17 @@
 //!
 //! Costs: the cells' subspaces O(m · d · p) per kept level (randomized range finder, seeded:
 //! deterministic), the bounds O(p · d) per query and cell visited, the exact search of the rows
-//! read O(|G| · rows read · d) per group in one product. Memory: the cells' subspaces, about
-//! (p + 1) / [`LEAF_ROWS`] of the embedding (≈ 0.3 m · d values), and one group's rows at a time.
-//! At 52k vertices a map takes 1.1–1.3 s; at 840k, 48 s (the rows are gathered one by one from
-//! the column-major embedding), which is why the matching pipeline certifies only up to a size
-//! (its option `NearSearch::certified_up_to`).
+//! read O(|G| · rows read · d) per group, one product per run of consecutive rows. Memory: the
+//! cells' subspaces, about (p + 1) / [`LEAF_ROWS`] of the embedding (≈ 0.3 m · d values), four
+//! integers or floats per reference row, and one group's products at a time. At 52k vertices
+//! (d = 129) a map takes about 0.5 s; at 840k about 11 s (EXPERIMENTS.md, "The certificate at
+//! 840k").
 
 use std::ops::Range;
 
 use faer::linalg::matmul::matmul;
-use faer::{Accum, Mat, MatRef, Par};
+use faer::reborrow::{Reborrow, ReborrowMut};
+use faer::{Accum, Mat, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
@@ -61,14 +69,15 @@ pub const FANOUT: usize = 8;
 /// Largest dimension p of a cell's subspace.
 pub const SUBSPACE: usize = 8;
 
+/// Largest dimension p of a leaf's subspace (leaves hold about [`LEAF_ROWS`] rows; 6 read as
+/// few rows as 8 at 840k vertices and hold 22 % less memory, EXPERIMENTS.md).
+pub const LEAF_SUBSPACE: usize = 6;
+
 /// Cells with more rows than this are bounded by a ball (their rows are not copied).
 pub const SUBSPACE_ROWS: usize = 16384;
 
 /// Extra columns of the randomized range sketch of a cell's subspace.
 const SUBSPACE_OVERSAMPLE: usize = 6;
-
-/// Power iterations of that sketch.
-const SUBSPACE_POWER: usize = 1;
 
 /// What [`certify_nearest_rows`] read and changed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -99,7 +108,7 @@ impl Certificate {
 
 /// One cell of the hierarchy: its box, residual radius and where its mean and basis rows are.
 struct Cell {
-    /// The first of its rows in its level's `stack`: e_C, then the p rows of U_Cᵀ.
+    /// The first of its columns in its level's `stack`: e_C, then the p columns of U_C.
     at: usize,
     /// The box [lo, hi] of t = U_Cᵀ(r − e_C) over the cell's rows (p each).
     lo: Vec<f64>,
@@ -115,18 +124,23 @@ struct Cell {
     children: Range<usize>,
 }
 
-/// One level of the hierarchy: its cells, and their means and basis rows stacked (Σ (1 + p_C) ×
-/// d), so that a query group meets a run of cells (the children of one cell) in one product.
+/// One level of the hierarchy: its cells, and their means and bases side by side (d × Σ (1 + p_C)),
+/// so that a query group meets a run of cells (the children of one cell) in one product.
 struct Level {
     cells: Vec<Cell>,
     stack: Mat<f64>,
 }
 
-/// The cells of the reference rows, top level first; every cell's rows are contiguous in `rows`.
+/// The cells of the reference rows, top level first. The rows are in the tree's order (`order`:
+/// the row at position s is reference row `order[s]`), so every cell is a range of positions.
 struct CellTree {
     levels: Vec<Level>,
-    rows: Vec<usize>,
-    /// The leaf of every row (m).
+    order: Vec<usize>,
+    /// The position of every reference row in `order` (m).
+    position: Vec<usize>,
+    /// The squared norm of the row at every position (m), summed over the columns in order.
+    norms: Vec<f64>,
+    /// The leaf of every reference row (m).
     leaf_of: Vec<u32>,
 }
 
@@ -182,16 +196,24 @@ fn kd_depth(len: usize, size: usize) -> u32 {
 }
 
 impl CellTree {
-    /// The cells of `reference`'s rows (m × d) by their positions (m × 3): a k-d tree with leaves
-    /// of at most [`LEAF_ROWS`] rows, every log2([`FANOUT`])-th level kept (the top level holds at
-    /// most [`FANOUT`] cells). Cells of more than [`SUBSPACE_ROWS`] rows get a ball, streamed;
-    /// below, the rows of each cell of the first level that fits are gathered once and give the
-    /// subspaces of that cell and of all its descendants.
-    fn new(reference: MatRef<f64>, positions: &[[f64; 3]], seed: u64) -> Result<CellTree> {
-        let (m, d) = (reference.nrows(), reference.ncols());
+    /// The order of the reference rows by their vertices' positions (m × 3): a k-d tree with
+    /// leaves of at most [`LEAF_ROWS`] rows.
+    fn order(positions: &[[f64; 3]]) -> Vec<usize> {
+        let m = positions.len();
+        let mut order: Vec<usize> = (0..m).collect();
+        kd_order(positions, &mut order, kd_depth(m, LEAF_ROWS));
+        order
+    }
+
+    /// The cells of the reference rows `sorted` (m × d, the rows in the order `order` of
+    /// [`CellTree::order`]): every log2([`FANOUT`])-th level of the k-d tree kept (the top level
+    /// holds at most [`FANOUT`] cells). Cells of more than [`SUBSPACE_ROWS`] rows get a ball,
+    /// the others a subspace of at most [`SUBSPACE`] directions ([`LEAF_SUBSPACE`] for the
+    /// leaves). Every cell is a block of consecutive rows of `sorted` (nothing is copied), and
+    /// writes its mean and basis straight into its slot of its level's stack.
+    fn new(sorted: MatRef<f64>, order: Vec<usize>, seed: u64) -> Result<CellTree> {
+        let (m, d) = (sorted.nrows(), sorted.ncols());
         let depth = kd_depth(m, LEAF_ROWS);
-        let mut rows: Vec<usize> = (0..m).collect();
-        kd_order(positions, &mut rows, depth);
         let step = FANOUT.trailing_zeros().max(1);
         // Kept depths, top first, leaves last: …, depth − step, depth.
         let mut kept: Vec<u32> =
@@ -200,82 +222,63 @@ impl CellTree {
             kept.push(0);
         }
         kept.reverse();
-        let cell_seed = |t: u32, i: usize| seed ^ ((t as u64) << 40) ^ i as u64;
-        // The first kept level whose cells all fit SUBSPACE_ROWS.
-        let h = kept.iter().position(|&t| m.div_ceil(1 << t) <= SUBSPACE_ROWS).unwrap_or(kept.len() - 1);
-        let mut stats: Vec<Vec<Stats>> = Vec::with_capacity(kept.len());
-        for &t in &kept[..h] {
-            crate::progress::check()?;
-            stats.push(
-                (0..1usize << t).into_par_iter().map(|i| ball_stats(reference, &rows[kd_range(m, t, i)])).collect(),
-            );
-        }
-        crate::progress::check()?;
-        let th = kept[h];
-        let blocks: Vec<Vec<Vec<Stats>>> = (0..1usize << th)
-            .into_par_iter()
-            .map(|i| {
-                let top = kd_range(m, th, i);
-                let block = Mat::from_fn(top.len(), d, |s, a| reference[(rows[top.start + s], a)]);
-                kept[h..]
-                    .iter()
-                    .map(|&t| {
-                        let g = t - th;
-                        ((i << g)..((i + 1) << g))
-                            .map(|j| {
-                                let r = kd_range(m, t, j);
-                                subspace_stats(block.subrows(r.start - top.start, r.len()), cell_seed(t, j))
-                            })
-                            .collect()
-                    })
-                    .collect()
-            })
-            .collect();
-        let below: Vec<Vec<Stats>> = (h..kept.len()).map(|_| Vec::new()).collect();
-        let below = blocks.into_iter().fold(below, |mut acc, block| {
-            for (level, cells) in acc.iter_mut().zip(block) {
-                level.extend(cells);
-            }
-            acc
-        });
-        stats.extend(below);
         let mut levels = Vec::with_capacity(kept.len());
-        for (l, (&t, level)) in kept.iter().zip(stats).enumerate() {
+        for (l, &t) in kept.iter().enumerate() {
+            crate::progress::check()?;
+            let ball = m.div_ceil(1 << t) > SUBSPACE_ROWS;
+            let slot = 1 + if ball {
+                0
+            } else if l + 1 == kept.len() {
+                LEAF_SUBSPACE
+            } else {
+                SUBSPACE
+            };
             let below = kept.get(l + 1).map(|&u| u - t);
-            let total: usize = level.iter().map(|(_, basis, ..)| 1 + basis.len() / d).sum();
-            let mut stack = Mat::<f64>::zeros(total, d);
-            let mut cells = Vec::with_capacity(level.len());
-            let mut at = 0;
-            for (i, (mean, basis, lo, hi, eps)) in level.into_iter().enumerate() {
-                let p = basis.len() / d;
-                for a in 0..d {
-                    stack[(at, a)] = mean[a];
-                }
-                for (c, u) in basis.chunks(d).enumerate() {
-                    for a in 0..d {
-                        stack[(at + 1 + c, a)] = u[a];
-                    }
-                }
-                let mean_sq = mean.iter().map(|x| x * x).sum();
-                let basis_mean = basis.chunks(d).map(|u| u.iter().zip(&mean).map(|(a, b)| a * b).sum()).collect();
-                let children = match below {
-                    Some(g) => (i << g)..((i + 1) << g),
-                    None => 0..0,
-                };
-                cells.push(Cell { at, lo, hi, eps, mean_sq, basis_mean, rows: kd_range(m, t, i), children });
-                at += 1 + p;
-            }
+            let mut stack = Mat::<f64>::zeros(d, slot << t);
+            let cells: Vec<Cell> = stack
+                .as_mut()
+                .par_col_chunks_mut(slot)
+                .enumerate()
+                .map_init(
+                    || Mat::<f64>::zeros(0, d),
+                    |scratch, (i, mut out)| {
+                        let rows = kd_range(m, t, i);
+                        let block = sorted.subrows(rows.start, rows.len());
+                        let (lo, hi, eps) = if ball {
+                            (Vec::new(), Vec::new(), ball_stats(block, out.rb_mut()))
+                        } else {
+                            let seed = seed ^ ((t as u64) << 40) ^ i as u64;
+                            subspace_stats(block, seed, scratch, out.rb_mut())
+                        };
+                        let out = out.rb();
+                        let mean = out.col(0);
+                        let mean_sq = (0..d).map(|a| mean[a] * mean[a]).sum();
+                        let basis_mean =
+                            (0..lo.len()).map(|c| (0..d).map(|a| out[(a, 1 + c)] * mean[a]).sum()).collect();
+                        let children = match below {
+                            Some(g) => (i << g)..((i + 1) << g),
+                            None => 0..0,
+                        };
+                        Cell { at: i * slot, lo, hi, eps, mean_sq, basis_mean, rows, children }
+                    },
+                )
+                .collect();
             levels.push(Level { cells, stack });
         }
         let mut leaf_of = vec![0u32; m];
         if let Some(leaves) = levels.last() {
             for (t, cell) in leaves.cells.iter().enumerate() {
-                for &j in &rows[cell.rows.clone()] {
+                for &j in &order[cell.rows.clone()] {
                     leaf_of[j] = t as u32;
                 }
             }
         }
-        Ok(CellTree { levels, rows, leaf_of })
+        let mut position = vec![0; m];
+        for (s, &j) in order.iter().enumerate() {
+            position[j] = s;
+        }
+        let norms = crate::linalg::row_squared_norms(sorted);
+        Ok(CellTree { levels, order, position, norms, leaf_of })
     }
 }
 
@@ -289,126 +292,183 @@ fn query_groups(positions: &[[f64; 3]], rows: &[usize]) -> Vec<Vec<usize>> {
     (0..1usize << depth).map(|i| order[kd_range(rows.len(), depth, i)].to_vec()).filter(|g| !g.is_empty()).collect()
 }
 
-/// The statistics of one cell: (mean e (d), Uᵀ (p × d row-major, orthonormal rows), lo, hi, ε).
-type Stats = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>, f64);
-
-/// [`Stats`] of a ball around the reference rows `ids`: p = 0, ε their largest distance from
-/// their mean (rounded up), streamed without a copy of the rows (the top levels' large cells,
-/// which only rule out far regions).
-fn ball_stats(reference: MatRef<f64>, ids: &[usize]) -> Stats {
-    let d = reference.ncols();
-    let mut mean = vec![0.0; d];
-    for &j in ids {
-        for (a, m) in mean.iter_mut().enumerate() {
-            *m += reference[(j, a)];
+/// A ball around the rows of `block` (r × d): their mean into `out`'s first column (d), and ε,
+/// their largest distance from it (rounded up); without a copy of the rows (the top levels'
+/// large cells, which only rule out far regions).
+fn ball_stats(block: MatRef<f64>, mut out: MatMut<f64>) -> f64 {
+    let (r, d) = (block.nrows(), block.ncols());
+    let mean: Vec<f64> = (0..d).map(|a| (0..r).map(|i| block[(i, a)]).sum::<f64>() / r.max(1) as f64).collect();
+    let (mut e2, mut n2) = (vec![0.0; r], vec![0.0; r]);
+    for (a, m) in mean.iter().enumerate() {
+        out[(a, 0)] = *m;
+        for i in 0..r {
+            let x = block[(i, a)];
+            e2[i] += (x - m).powi(2);
+            n2[i] += x * x;
         }
     }
-    mean.iter_mut().for_each(|m| *m /= ids.len().max(1) as f64);
-    let (mut eps2, mut largest2) = (0.0f64, 0.0f64);
-    for &j in ids {
-        let (mut e2, mut n2) = (0.0, 0.0);
-        for (a, m) in mean.iter().enumerate() {
-            let x = reference[(j, a)];
-            e2 += (x - m).powi(2);
-            n2 += x * x;
-        }
-        eps2 = eps2.max(e2);
-        largest2 = largest2.max(n2);
-    }
-    (mean, Vec::new(), Vec::new(), Vec::new(), eps2.sqrt() + 1e-12 * largest2.sqrt())
+    let eps2 = e2.iter().fold(0.0f64, |a, &b| a.max(b));
+    let largest2 = n2.iter().fold(0.0f64, |a, &b| a.max(b));
+    eps2.sqrt() + 1e-12 * largest2.sqrt()
 }
 
-/// [`Stats`] of the rows of `block` (r × d) with a subspace of dimension p ≤ [`SUBSPACE`]: U spans
+/// The subspace of the rows of `block` (r × d): their mean e into `out`'s first column and U
+/// (orthonormal, p ≤ `out.ncols()` − 1 columns) into the next; returns the box [lo, hi] (p each)
+/// of t = Uᵀ(r − e) over the rows and ε, the largest ‖P⊥(r − e)‖ (rounded up). U spans
 /// a randomized range finder's estimate of the centred rows' top principal directions (Halko,
-/// Martinsson, Tropp 2011: a sketch with [`SUBSPACE_OVERSAMPLE`] extra columns, seeded,
-/// [`SUBSPACE_POWER`] power iterations, Rayleigh–Ritz); the box and ε are measured on the rows
-/// with that U, so the bound holds whatever U is.
-fn subspace_stats(block: MatRef<f64>, seed: u64) -> Stats {
+/// Martinsson, Tropp 2011: a Rademacher sketch with [`SUBSPACE_OVERSAMPLE`] extra columns, seeded,
+/// then Rayleigh–Ritz; no power iteration: one cost 30 % more time on the cells at 840k vertices
+/// and changed neither the rows read nor the time of the descent); the box and ε are measured on
+/// the rows with that U, so the bound holds whatever U is. `scratch` (at least r × d) holds the
+/// centred rows, then their residuals.
+fn subspace_stats(
+    block: MatRef<f64>,
+    seed: u64,
+    scratch: &mut Mat<f64>,
+    mut out: MatMut<f64>,
+) -> (Vec<f64>, Vec<f64>, f64) {
     let (r, d) = (block.nrows(), block.ncols());
     if r == 0 {
-        return (vec![0.0; d], Vec::new(), Vec::new(), Vec::new(), 0.0);
+        return (Vec::new(), Vec::new(), 0.0);
     }
     let mean: Vec<f64> = (0..d).map(|a| (0..r).map(|i| block[(i, a)]).sum::<f64>() / r as f64).collect();
-    let dm = Mat::from_fn(r, d, |i, a| block[(i, a)] - mean[a]);
-    let p = SUBSPACE.min(r.saturating_sub(1)).min(d);
-    let mut basis: Vec<f64> = Vec::new();
+    for (a, m) in mean.iter().enumerate() {
+        out[(a, 0)] = *m;
+    }
+    // The centred rows, in scratch reused across cells (fresh r × d buffers would be paged in
+    // and zeroed for every cell: the embedding's size again for every level).
+    if scratch.nrows() < r || scratch.ncols() != d {
+        *scratch = Mat::zeros(r, d);
+    }
+    let mut dm = scratch.as_mut().subrows_mut(0, r);
+    for a in 0..d {
+        for i in 0..r {
+            dm[(i, a)] = block[(i, a)] - mean[a];
+        }
+    }
+    let p = (out.ncols() - 1).min(r.saturating_sub(1)).min(d);
+    let mut q = 0;
     if p > 0 {
         let w = (p + SUBSPACE_OVERSAMPLE).min(d);
         let mut rng = crate::rng::Normal::new(seed);
-        let h = Mat::from_fn(r, w, |_, _| rng.sample());
-        let mut qz = orthonormal_columns(crate::linalg::mul(dm.transpose(), h.as_ref()).as_ref());
-        for _ in 0..SUBSPACE_POWER {
-            let t = crate::linalg::mul(dm.as_ref(), qz.as_ref());
-            qz = orthonormal_columns(crate::linalg::mul(dm.transpose(), t.as_ref()).as_ref());
-        }
-        let t = crate::linalg::mul(dm.as_ref(), qz.as_ref());
+        // A Rademacher sketch (signs): as good a range finder as a Gaussian one, and cheaper.
+        let h = Mat::from_fn(r, w, |_, _| if rng.uniform() < 0.5 { -1.0 } else { 1.0 });
+        let qz = orthonormal_columns(crate::linalg::mul(dm.rb().transpose(), h.as_ref()).as_ref());
+        let t = crate::linalg::mul(dm.rb(), qz.as_ref());
         let gram = crate::linalg::mul(t.transpose(), t.as_ref());
+        let mut ritz = Mat::<f64>::zeros(qz.ncols(), 0);
         if qz.ncols() > 0 {
             if let Ok(evd) = gram.self_adjoint_eigen(faer::Side::Lower) {
                 let vals = evd.S().column_vector();
                 let top = vals[qz.ncols() - 1].max(0.0);
                 // Eigenvalues ascending: the last p, while above rounding.
-                for c in (0..qz.ncols()).rev().take(p) {
-                    if top == 0.0 || vals[c] <= 1e-24 * top {
-                        break;
-                    }
-                    let u = crate::linalg::mul(qz.as_ref(), evd.U().subcols(c, 1));
-                    basis.extend((0..d).map(|a| u[(a, 0)]));
-                }
+                let kept: Vec<usize> =
+                    (0..qz.ncols()).rev().take(p).take_while(|&c| top > 0.0 && vals[c] > 1e-24 * top).collect();
+                ritz = Mat::from_fn(qz.ncols(), kept.len(), |a, c| evd.U()[(a, kept[c])]);
             }
         }
         // Orthonormal to rounding once more (the bound assumes it).
-        let u = orthonormal_columns(MatRef::from_row_major_slice(&basis, basis.len() / d, d).transpose());
-        basis = (0..u.ncols()).flat_map(|c| (0..d).map(move |a| (c, a))).map(|(c, a)| u[(a, c)]).collect();
+        let u = orthonormal_columns(crate::linalg::mul(qz.as_ref(), ritz.as_ref()).as_ref());
+        q = u.ncols();
+        out.rb_mut().subcols_mut(1, q).copy_from(u.as_ref());
     }
-    let q = basis.len() / d;
-    let ut = MatRef::from_row_major_slice(&basis, q, d);
-    let t = crate::linalg::mul(dm.as_ref(), ut.transpose()); // r × q
-    let residual = &dm - &t * ut; // r × d
+    let u = out.rb().subcols(1, q);
+    let t = crate::linalg::mul(dm.rb(), u); // r × q
+                                            // The residuals (r − e) − U t, in place.
+    matmul(dm.rb_mut(), Accum::Add, t.as_ref(), u.transpose(), -1.0, Par::Seq);
     let (mut lo, mut hi) = (vec![f64::INFINITY; q], vec![f64::NEG_INFINITY; q]);
-    let (mut eps2, mut largest2) = (0.0f64, 0.0f64);
-    for i in 0..r {
-        eps2 = eps2.max((0..d).map(|a| residual[(i, a)].powi(2)).sum());
-        largest2 = largest2.max((0..d).map(|a| block[(i, a)].powi(2)).sum());
-        for c in 0..q {
+    for c in 0..q {
+        for i in 0..r {
             lo[c] = lo[c].min(t[(i, c)]);
             hi[c] = hi[c].max(t[(i, c)]);
         }
     }
+    // Row norms summed column by column (the matrices are column-major).
+    let largest = |x: MatRef<f64>| crate::linalg::row_squared_norms(x).into_iter().fold(0.0f64, f64::max);
+    let (eps2, largest2) = (largest(dm.rb()), largest(block));
     // Rounded up by far more than the rounding of the products above.
-    (mean, basis, lo, hi, eps2.sqrt() + 1e-12 * largest2.sqrt())
+    (lo, hi, eps2.sqrt() + 1e-12 * largest2.sqrt())
 }
 
-/// The nearest of the reference rows `read` (ascending vertex ids) to every row of `queries`
-/// (|G| × d, squared norms `qn2`), by the exact search's key ‖r_j‖² − 2 q · r_j (row norms and dot
+/// The nearest of the rows `read` of `sorted` (ascending positions; row s is reference row
+/// `order[s]`, its squared norm `norms[s]`) to every row of `queries` (|G| × d, squared norms
+/// `qn2`), as a reference row id, by the exact search's key ‖r_j‖² − 2 q · r_j (row norms and dot
 /// products summed over the columns in order, as [`crate::spatial::nearest_rows`] does), ties to
 /// the smallest id: a product in f64 screens, the rows within rounding of the smallest key are
-/// compared exactly.
-fn nearest_among(reference: MatRef<f64>, read: &[usize], queries: MatRef<f64>, qn2: &[f64]) -> Vec<usize> {
-    let d = reference.ncols();
-    let refs = Mat::from_fn(read.len(), d, |t, a| reference[(read[t], a)]);
-    let rn = crate::linalg::row_squared_norms(refs.as_ref());
-    let rmax = rn.iter().fold(0.0f64, |a, &b| a.max(b));
+/// compared exactly. The rows are read in place, one product per run of consecutive positions
+/// (mostly whole leaves): no copy.
+fn nearest_among(
+    sorted: MatRef<f64>,
+    order: &[usize],
+    norms: &[f64],
+    read: &[usize],
+    queries: MatRef<f64>,
+    qn2: &[f64],
+) -> Vec<usize> {
+    let d = sorted.ncols();
+    let rmax = read.iter().map(|&s| norms[s]).fold(0.0f64, f64::max);
     let mut dots = Mat::<f64>::zeros(queries.nrows(), read.len());
-    matmul(dots.as_mut(), Accum::Replace, queries, refs.transpose(), 1.0, Par::Seq);
-    (0..queries.nrows())
-        .map(|i| {
-            let key = |t: usize| rn[t] - 2.0 * dots[(i, t)];
-            let low = (0..read.len()).map(key).fold(f64::INFINITY, f64::min);
-            // Ascending t is ascending id: the strict comparison keeps the smallest id of a tie.
-            // Both keys' rounding is below d · 2⁻⁵² · (‖q‖² + ‖r‖²).
-            let slack = 1e-12 * (d as f64) * (qn2[i] + rmax);
-            let mut best = (f64::INFINITY, usize::MAX);
-            for t in (0..read.len()).filter(|&t| key(t) <= low + 2.0 * slack) {
-                let dot: f64 = (0..d).map(|c| queries[(i, c)] * refs[(t, c)]).sum();
-                let exact = rn[t] - 2.0 * dot;
-                if exact < best.0 {
-                    best = (exact, t);
-                }
+    let mut t = 0;
+    while t < read.len() {
+        let mut end = t + 1;
+        while end < read.len() && read[end] == read[end - 1] + 1 {
+            end += 1;
+        }
+        matmul(
+            dots.as_mut().subcols_mut(t, end - t),
+            Accum::Replace,
+            queries,
+            sorted.subrows(read[t], end - t).transpose(),
+            1.0,
+            Par::Seq,
+        );
+        t = end;
+    }
+    // The keys, column by column (a column holds one row's keys for every query).
+    let g = queries.nrows();
+    let nr: Vec<f64> = read.iter().map(|&s| norms[s]).collect();
+    let mut low = vec![f64::INFINITY; g];
+    smallest_keys(dots.as_ref(), &nr, &mut low);
+    // Both keys' rounding is below d · 2⁻⁵² · (‖q‖² + ‖r‖²).
+    let limit: Vec<f64> = (0..g).map(|i| low[i] + 2.0 * 1e-12 * (d as f64) * (qn2[i] + rmax)).collect();
+    let mut best = vec![(f64::INFINITY, usize::MAX); g];
+    for (t, &n) in nr.iter().enumerate() {
+        let col = &dots.col_as_slice(t)[..g];
+        if !any_key_within(col, n, &limit) {
+            continue;
+        }
+        for i in (0..g).filter(|&i| n - 2.0 * col[i] <= limit[i]) {
+            let dot: f64 = (0..d).map(|c| queries[(i, c)] * sorted[(read[t], c)]).sum();
+            let exact = (n - 2.0 * dot, order[read[t]]);
+            if exact.0 < best[i].0 || (exact.0 == best[i].0 && exact.1 < best[i].1) {
+                best[i] = exact;
             }
-            read[best.1]
-        })
-        .collect()
+        }
+    }
+    best.into_iter().map(|(_, j)| j).collect()
+}
+
+/// `low[i]` = min(`low[i]`, min over t of `norms[t]` − 2 `dots[(i, t)]`): the smallest key of every
+/// query (a row of `dots`, |G| × r, column-major) over the rows t.
+#[inline(always)]
+fn smallest_keys_generic(dots: MatRef<f64>, norms: &[f64], low: &mut [f64]) {
+    let g = low.len();
+    for (t, &n) in norms.iter().enumerate() {
+        let col = &dots.col(t).try_as_col_major().expect("a column-major product").as_slice()[..g];
+        for (l, &x) in low.iter_mut().zip(col) {
+            *l = l.min(n - 2.0 * x);
+        }
+    }
+}
+
+crate::linalg::at_vector_width! {
+    /// [`smallest_keys_generic`] at the widest vectors the CPU has.
+    fn smallest_keys(dots: MatRef<f64>, norms: &[f64], low: &mut [f64]) = smallest_keys_generic
+}
+
+/// Whether some key `n` − 2 `col[i]` is at most `limit[i]`.
+fn any_key_within(col: &[f64], n: f64, limit: &[f64]) -> bool {
+    col.iter().zip(limit).fold(false, |any, (&x, &l)| any | (n - 2.0 * x <= l))
 }
 
 /// Orthonormal columns spanning those of `z` (d × w): modified Gram–Schmidt, twice per column;
@@ -433,67 +493,188 @@ fn orthonormal_columns(z: MatRef<f64>) -> Mat<f64> {
     Mat::from_fn(d, kept.len(), |a, c| kept[c][a])
 }
 
+/// Scratch of a group's bounds, reused for every run of cells: the product (|G| × the run's
+/// stacked rows) and two columns of |G|.
+struct BoundScratch {
+    prod: Mat<f64>,
+    normal2: Vec<f64>,
+    lb2: Vec<f64>,
+}
+
+impl BoundScratch {
+    fn new(queries: usize) -> BoundScratch {
+        BoundScratch {
+            prod: Mat::zeros(queries, FANOUT * (1 + SUBSPACE)),
+            normal2: vec![0.0; queries],
+            lb2: vec![0.0; queries],
+        }
+    }
+}
+
 /// The bounds LB(q, C)² (module documentation) of the queries of a group (`queries` |G| × d,
 /// squared norms `qn2`) for the run `run` of a level's cells, calling `keep(cell, lb²)` for each
 /// cell with rows (lb² one per query). One product of the queries with the run's stacked mean
 /// and basis rows; the normal part ‖P⊥(q − e_C)‖ from ‖q − e_C‖² − ‖U_Cᵀ(q − e_C)‖², lowered by a
-/// rounding slack so that the bound stays a lower bound.
-fn bound_run(level: &Level, run: Range<usize>, queries: MatRef<f64>, qn2: &[f64], mut keep: impl FnMut(usize, &[f64])) {
+/// rounding slack so that the bound stays a lower bound. The loops run over the queries, in the
+/// product's columns.
+fn bound_run(
+    level: &Level,
+    run: Range<usize>,
+    queries: MatRef<f64>,
+    qn2: &[f64],
+    scratch: &mut BoundScratch,
+    mut keep: impl FnMut(usize, &[f64]),
+) {
+    let g = queries.nrows();
     let (first, last) = (&level.cells[run.start], &level.cells[run.end - 1]);
     let rows = first.at..last.at + 1 + last.lo.len();
-    let mut prod = Mat::<f64>::zeros(queries.nrows(), rows.len());
+    if scratch.prod.ncols() < rows.len() {
+        scratch.prod = Mat::zeros(g, rows.len());
+    }
     matmul(
-        prod.as_mut(),
+        scratch.prod.as_mut().subcols_mut(0, rows.len()),
         Accum::Replace,
         queries,
-        level.stack.subrows(rows.start, rows.len()).transpose(),
+        level.stack.subcols(rows.start, rows.len()),
         1.0,
         Par::Seq,
     );
-    let mut lb2 = vec![0.0; queries.nrows()];
+    let prod = scratch.prod.as_ref().subcols(0, rows.len());
     for t in run {
         let cell = &level.cells[t];
         if cell.rows.is_empty() {
             continue;
         }
-        let o = cell.at - rows.start;
-        for (i, lb) in lb2.iter_mut().enumerate() {
-            let v2 = qn2[i] - 2.0 * prod[(i, o)] + cell.mean_sq;
-            let (mut x2, mut box2) = (0.0, 0.0);
-            for c in 0..cell.lo.len() {
-                let x = prod[(i, o + 1 + c)] - cell.basis_mean[c];
-                x2 += x * x;
-                let out = (cell.lo[c] - x).max(x - cell.hi[c]).max(0.0);
-                box2 += out * out;
-            }
-            let slack = 1e-12 * (qn2[i] + cell.mean_sq);
-            let perp = (v2 - x2 - slack).max(0.0).sqrt();
-            let normal = (perp - cell.eps).max(0.0);
-            *lb = box2 + normal * normal;
-        }
-        keep(t, &lb2);
+        let (x2, lb2) = (&mut scratch.normal2, &mut scratch.lb2);
+        cell_bounds(prod, cell.at - rows.start, cell, qn2, x2, lb2);
+        keep(t, lb2);
     }
+}
+
+/// LB(q, C)² of every query of a group for one cell (`lb2`, |G|), from the product `prod` of the
+/// queries with the run's stacked columns (the cell's mean at column `o`, its basis after it), as
+/// in [`bound_run`]. `x2` is scratch (|G|).
+#[inline(always)]
+fn cell_bounds_generic(prod: MatRef<f64>, o: usize, cell: &Cell, qn2: &[f64], x2: &mut [f64], lb2: &mut [f64]) {
+    let g = qn2.len();
+    let col = |c: usize| -> &[f64] { &prod.col(c).try_as_col_major().expect("a column-major product").as_slice()[..g] };
+    x2.fill(0.0);
+    lb2.fill(0.0);
+    for c in 0..cell.lo.len() {
+        let (bm, lo, hi) = (cell.basis_mean[c], cell.lo[c], cell.hi[c]);
+        for ((p, x2), b2) in col(o + 1 + c).iter().zip(x2.iter_mut()).zip(lb2.iter_mut()) {
+            let x = p - bm;
+            *x2 += x * x;
+            let out = (lo - x).max(x - hi).max(0.0);
+            *b2 += out * out;
+        }
+    }
+    for (((pm, &q2), x2), b2) in col(o).iter().zip(qn2).zip(x2.iter()).zip(lb2.iter_mut()) {
+        let v2 = q2 - 2.0 * pm + cell.mean_sq;
+        let slack = 1e-12 * (q2 + cell.mean_sq);
+        let perp = (v2 - x2 - slack).max(0.0).sqrt();
+        let normal = (perp - cell.eps).max(0.0);
+        *b2 += normal * normal;
+    }
+}
+
+crate::linalg::at_vector_width! {
+    /// [`cell_bounds_generic`] at the widest vectors the CPU has.
+    fn cell_bounds(prod: MatRef<f64>, o: usize, cell: &Cell, qn2: &[f64], x2: &mut [f64], lb2: &mut [f64]) = cell_bounds_generic
+}
+
+/// The cells of the run `run` of a level (with rows) whose LB(c, C) (module documentation) for
+/// one point `c` (1 × d, squared norm `cn2`) is at most `reach`, in order: one product of `c` with
+/// the run's stacked columns (`row`: scratch of at least their number), the rounding slack as in
+/// [`bound_run`].
+fn cells_within(
+    level: &Level,
+    run: Range<usize>,
+    c: MatRef<f64>,
+    cn2: f64,
+    reach: f64,
+    row: &mut Mat<f64>,
+) -> Vec<usize> {
+    let (first, last) = (&level.cells[run.start], &level.cells[run.end - 1]);
+    let cols = first.at..last.at + 1 + last.lo.len();
+    if row.ncols() < cols.len() {
+        *row = Mat::zeros(1, cols.len());
+    }
+    matmul(
+        row.as_mut().subcols_mut(0, cols.len()),
+        Accum::Replace,
+        c,
+        level.stack.subcols(cols.start, cols.len()),
+        1.0,
+        Par::Seq,
+    );
+    let reach2 = reach * reach;
+    run.filter(|&t| {
+        let cell = &level.cells[t];
+        if cell.rows.is_empty() {
+            return false;
+        }
+        let o = cell.at - cols.start;
+        let v2 = cn2 - 2.0 * row[(0, o)] + cell.mean_sq;
+        let (mut x2, mut box2) = (0.0, 0.0);
+        for k in 0..cell.lo.len() {
+            let x = row[(0, o + 1 + k)] - cell.basis_mean[k];
+            x2 += x * x;
+            let out = (cell.lo[k] - x).max(x - cell.hi[k]).max(0.0);
+            box2 += out * out;
+        }
+        let slack = 1e-12 * (cn2 + cell.mean_sq);
+        let normal = ((v2 - x2 - slack).max(0.0).sqrt() - cell.eps).max(0.0);
+        box2 + normal * normal <= reach2
+    })
+    .collect()
 }
 
 /// The leaves that some query of a group cannot rule out with the squared thresholds `limit2`,
 /// found top down; and the number of cells bounded.
 fn candidate_leaves(tree: &CellTree, queries: MatRef<f64>, qn2: &[f64], limit2: &[f64]) -> (Vec<usize>, u64) {
+    let (g, d) = (queries.nrows(), queries.ncols());
+    // The group's centre c and reach: LB(·, C) is the distance to a set, so 1-Lipschitz, and
+    // LB(q, C) ≥ LB(c, C) − ‖q − c‖; a cell with LB(c, C) above max over q of ‖q − c‖ + limit_q
+    // holds no row nearer to any query than its threshold.
+    let c: Vec<f64> = (0..d).map(|a| (0..g).map(|i| queries[(i, a)]).sum::<f64>() / g as f64).collect();
+    let cn2: f64 = c.iter().map(|x| x * x).sum();
+    let cm = MatRef::from_row_major_slice(&c, 1, d);
+    let mut row = Mat::<f64>::zeros(1, FANOUT * (1 + SUBSPACE));
+    let reach = (0..g)
+        .map(|i| {
+            let r2: f64 = (0..d).map(|a| (queries[(i, a)] - c[a]).powi(2)).sum();
+            r2.sqrt() + limit2[i].sqrt() + 1e-12 * (qn2[i].sqrt() + cn2.sqrt())
+        })
+        .fold(0.0f64, f64::max);
     let top: Range<usize> = 0..tree.levels[0].cells.len();
     let mut runs: Vec<Range<usize>> = std::iter::once(top).collect();
     let mut bounded = 0u64;
     let depth = tree.levels.len();
     let mut leaves = Vec::new();
+    let mut scratch = BoundScratch::new(queries.nrows());
     for (l, level) in tree.levels.iter().enumerate() {
         let mut next = Vec::new();
+        let leaf = l + 1 == depth;
+        let mut take = |t: usize, next: &mut Vec<Range<usize>>| {
+            if leaf {
+                leaves.push(t);
+            } else {
+                next.push(level.cells[t].children.clone());
+            }
+        };
         for run in runs {
+            // The centre's bound first (one product row for the run), then every query's for
+            // the cells from the first to the last the centre leaves.
+            let alive = cells_within(level, run, cm, cn2, reach, &mut row);
+            let (Some(&first), Some(&last)) = (alive.first(), alive.last()) else {
+                continue;
+            };
+            let run = first..last + 1;
             bounded += run.len() as u64;
-            bound_run(level, run, queries, qn2, |t, lb2| {
+            bound_run(level, run, queries, qn2, &mut scratch, |t, lb2| {
                 if lb2.iter().zip(limit2).any(|(b, l)| b <= l) {
-                    if l + 1 == depth {
-                        leaves.push(t);
-                    } else {
-                        next.push(level.cells[t].children.clone());
-                    }
+                    take(t, &mut next);
                 }
             });
         }
@@ -516,9 +697,14 @@ type GroupResult = (Vec<(usize, usize)>, u64, u64);
 /// exact result; a surface's keep the cells small in the embedding). `seed` seeds the cells'
 /// subspaces (the result does not depend on it).
 ///
+/// `reference` is mutable for the call's duration only: its rows are put in the cells' order in
+/// place, so that every cell is a block of consecutive rows read in streams (gathered one by one
+/// from a column-major 840k-vertex embedding they took 48 s; a reordered copy would double the
+/// embedding's memory, 0.87 GB there), and put back before the function returns, also on error.
+///
 /// Errors: mismatched sizes, ids out of range, a non-finite entry in either embedding.
 pub fn certify_nearest_rows(
-    reference: MatRef<f64>,
+    mut reference: MatMut<f64>,
     query: MatRef<f64>,
     reference_positions: &[[f64; 3]],
     query_positions: &[[f64; 3]],
@@ -546,22 +732,75 @@ pub fn certify_nearest_rows(
     if rows.iter().any(|&i| i >= n) || answer.iter().any(|&j| j >= m) {
         return Err(Error::invalid("certified search", "a vertex id is out of range"));
     }
-    let mut cert = Certificate { queries: rows.len(), references: m, ..Certificate::default() };
+    let cert = Certificate { queries: rows.len(), references: m, ..Certificate::default() };
     if rows.is_empty() {
         return Ok(cert);
     }
-    let (Some(max_r), Some(max_q)) = (crate::linalg::max_abs_finite(reference), crate::linalg::max_abs_finite(query))
+    let (Some(max_r), Some(max_q)) =
+        (crate::linalg::max_abs_finite(reference.rb()), crate::linalg::max_abs_finite(query))
     else {
         return Err(Error::invalid("certified search", "an embedding contains a non-finite value"));
     };
     // Slack for rounding in the bounds: far above it (≈ 10⁻¹⁵ of the rows' norms), far below any
     // distance that matters.
     let tol = 1e-9 * (max_r + max_q) * (d as f64).sqrt();
+    let order = CellTree::order(reference_positions);
+    permute_rows(reference.rb_mut(), &order, false);
     let t0 = std::time::Instant::now();
-    let tree = CellTree::new(reference, reference_positions, seed)?;
+    let tree = CellTree::new(reference.rb(), order, seed);
     if std::env::var_os("FUNCORR_DEBUG_CERTIFIED").is_some() {
-        eprintln!("certified search: cells in {:.2} s", t0.elapsed().as_secs_f64());
+        eprintln!("certified search: rows reordered and cells in {:.2} s", t0.elapsed().as_secs_f64());
     }
+    let result = tree.and_then(|tree| {
+        let found = certify_sorted(reference.rb(), &tree, query, query_positions, rows, answer, tol);
+        permute_rows(reference.rb_mut(), &tree.order, true);
+        found
+    });
+    let (pairs, rows_read, cells_bounded) = result?;
+    let mut cert = Certificate { rows_read, cells_bounded, ..cert };
+    for (s, j) in pairs {
+        if answer[s] != j {
+            answer[s] = j;
+            cert.changed += 1;
+        }
+    }
+    Ok(cert)
+}
+
+/// Reorders the rows of `mat` in place: row s becomes row `order[s]` (`back`: row `order[s]`
+/// becomes row s, the inverse), one column at a time through one column of scratch per thread.
+fn permute_rows(mat: MatMut<f64>, order: &[usize], back: bool) {
+    let m = mat.nrows();
+    mat.par_col_iter_mut().for_each_init(
+        || vec![0.0; m],
+        |scratch, mut col| {
+            for (s, &j) in order.iter().enumerate() {
+                if back {
+                    scratch[j] = col[s];
+                } else {
+                    scratch[s] = col[j];
+                }
+            }
+            for (s, x) in scratch.iter().enumerate() {
+                col[s] = *x;
+            }
+        },
+    );
+}
+
+/// The work of [`certify_nearest_rows`] on the reference rows in the tree's order (`sorted`, m ×
+/// d): the exact answers of the query groups as (position in `rows`, reference row id) pairs, the
+/// rows read and the cells bounded.
+fn certify_sorted(
+    sorted: MatRef<f64>,
+    tree: &CellTree,
+    query: MatRef<f64>,
+    query_positions: &[[f64; 3]],
+    rows: &[usize],
+    answer: &[usize],
+    tol: f64,
+) -> Result<GroupResult> {
+    let (d, dq) = (sorted.ncols(), query.ncols());
     let groups = query_groups(query_positions, rows);
     let qrow = |s: usize, a: usize| if a < dq { query[(rows[s], a)] } else { 0.0 };
     let results: Vec<Result<GroupResult>> = groups
@@ -578,20 +817,21 @@ pub fn certify_nearest_rows(
                 best.iter()
                     .enumerate()
                     .map(|(i, &j)| {
-                        (0..d).map(|a| (queries[(i, a)] - reference[(j, a)]).powi(2)).sum::<f64>().sqrt() + tol
+                        let at = tree.position[j];
+                        (0..d).map(|a| (queries[(i, a)] - sorted[(at, a)]).powi(2)).sum::<f64>().sqrt() + tol
                     })
                     .collect()
             };
             // The exact search among the rows of `leaves` and the current answers.
-            let search = |leaves: &[usize], best: &[usize]| -> Result<(Vec<usize>, usize)> {
+            let search = |leaves: &[usize], best: &[usize]| -> (Vec<usize>, usize) {
                 let level = &tree.levels[tree.levels.len() - 1];
-                let mut read: Vec<usize> = best.to_vec();
+                let mut read: Vec<usize> = best.iter().map(|&j| tree.position[j]).collect();
                 for &t in leaves {
-                    read.extend_from_slice(&tree.rows[level.cells[t].rows.clone()]);
+                    read.extend(level.cells[t].rows.clone());
                 }
                 read.sort_unstable();
                 read.dedup();
-                Ok((nearest_among(reference, &read, queries.as_ref(), &qn2), read.len()))
+                (nearest_among(sorted, &tree.order, &tree.norms, &read, queries.as_ref(), &qn2), read.len())
             };
             // First the leaves that hold the group's answers: the group's queries are
             // neighbours, so where a restricted answer is far off, its neighbours' answers
@@ -599,31 +839,27 @@ pub fn certify_nearest_rows(
             let mut own: Vec<usize> = best.iter().map(|&j| tree.leaf_of[j] as usize).collect();
             own.sort_unstable();
             own.dedup();
-            let (found, r1) = search(&own, &best)?;
+            let (found, r1) = search(&own, &best);
             best = found;
             // Then one descent with those thresholds, and every leaf it leaves that was not read.
             let limit2: Vec<f64> = thresholds(&best).iter().map(|x| x * x).collect();
-            let (leaves, bounded) = candidate_leaves(&tree, queries.as_ref(), &qn2, &limit2);
+            let (leaves, bounded) = candidate_leaves(tree, queries.as_ref(), &qn2, &limit2);
             let rest: Vec<usize> = leaves.into_iter().filter(|t| own.binary_search(t).is_err()).collect();
-            let (found, r2) = if rest.is_empty() { (best.clone(), 0) } else { search(&rest, &best)? };
+            let (found, r2) = if rest.is_empty() { (best.clone(), 0) } else { search(&rest, &best) };
             let pairs = group.iter().zip(found).map(|(&s, j)| (s, j)).collect();
             let read = r1 + r2;
             Ok((pairs, (len * read) as u64, bounded))
         })
         .collect();
     crate::progress::check()?;
+    let mut all = (Vec::with_capacity(rows.len()), 0, 0);
     for r in results {
         let (pairs, rows_read, bounded) = r?;
-        cert.rows_read += rows_read;
-        cert.cells_bounded += bounded;
-        for (s, j) in pairs {
-            if answer[s] != j {
-                answer[s] = j;
-                cert.changed += 1;
-            }
-        }
+        all.0.extend(pairs);
+        all.1 += rows_read;
+        all.2 += bounded;
     }
-    Ok(cert)
+    Ok(all)
 }
 
 #[cfg(test)]
@@ -649,14 +885,15 @@ mod tests {
                 _ => (u * u - v * v) * (1.0 + 0.1 * a as f64),
             }
         };
-        let reference = Mat::from_fn(m, d, |j, a| feature(&p[j], a));
+        let original = Mat::from_fn(m, d, |j, a| feature(&p[j], a));
+        let mut reference = original.clone();
         // Queries: the rows plus noise, at the positions of a rotated copy (so each query's nearest
         // row is nearby, and the groups are cells of another partition than Y's).
         let mut rng = crate::rng::Normal::new(3);
         let qpos: Vec<[f64; 3]> = p.iter().map(|x| [x[1], -x[0], x[2]]).collect();
         let query = Mat::from_fn(m, d - 2, |i, a| feature(&p[i], a) + 0.01 * rng.sample());
         let exact = crate::spatial::nearest_rows(
-            reference.as_ref(),
+            original.as_ref(),
             Mat::from_fn(m, d, |i, a| if a < d - 2 { query[(i, a)] } else { 0.0 }).as_ref(),
         )
         .unwrap();
@@ -666,31 +903,57 @@ mod tests {
         {
             let mut answer = start.clone();
             let cert =
-                certify_nearest_rows(reference.as_ref(), query.as_ref(), &p, &qpos, &rows, &mut answer, 1).unwrap();
+                certify_nearest_rows(reference.as_mut(), query.as_ref(), &p, &qpos, &rows, &mut answer, 1).unwrap();
             assert_eq!(answer, exact);
+            assert!(reference == original, "the reference rows are put back in their order");
             assert_eq!(cert.changed, start.iter().zip(&exact).filter(|(a, b)| a != b).count());
         }
         // A near-exact start reads a small part of Y.
         let mut answer = exact.clone();
-        let cert = certify_nearest_rows(reference.as_ref(), query.as_ref(), &p, &qpos, &rows, &mut answer, 1).unwrap();
+        let cert = certify_nearest_rows(reference.as_mut(), query.as_ref(), &p, &qpos, &rows, &mut answer, 1).unwrap();
         assert_eq!(cert.changed, 0);
         assert!(cert.share_read() < 0.5, "read {:.3} of Y", cert.share_read());
+    }
+
+    /// Rows repeated (every row of the first half again in the second, at other positions) and a
+    /// cell of identical rows: the certified map breaks ties to the smallest row id, as the exact
+    /// search does, although the rows are searched in the cells' order.
+    #[test]
+    fn ties_go_to_the_smallest_row_id() {
+        let p = crate::primitives::icosphere(3).vertices().to_vec(); // 642 vertices
+        let m = p.len();
+        let half = m / 2;
+        let feature = |x: &[f64; 3]| [x[0], x[1], x[2], x[0] * x[1], (2.0 * x[2]).sin()];
+        // Rows half.. repeat rows 0..half; the first 40 rows are all the same.
+        let row = |j: usize| if j % half < 40 { feature(&p[0]) } else { feature(&p[j % half]) };
+        let original = Mat::from_fn(m, 5, |j, a| row(j)[a]);
+        let mut reference = original.clone();
+        let query = Mat::from_fn(m, 5, |i, a| feature(&p[i])[a]);
+        let exact = crate::spatial::nearest_rows(original.as_ref(), query.as_ref()).unwrap();
+        assert!(exact.iter().all(|&j| j < half), "the exact search keeps the smaller of two equal rows");
+        let rows: Vec<usize> = (0..m).collect();
+        // Start from the larger copy of each answer.
+        let mut answer: Vec<usize> = exact.iter().map(|&j| j + half).collect();
+        certify_nearest_rows(reference.as_mut(), query.as_ref(), &p, &p, &rows, &mut answer, 5).unwrap();
+        assert_eq!(answer, exact);
+        assert!(reference == original);
     }
 
     #[test]
     fn bad_input_is_an_error() {
         let p = crate::primitives::icosphere(1).vertices().to_vec();
         let m = p.len();
-        let r = Mat::from_fn(m, 3, |j, a| p[j][a]);
+        let q = Mat::from_fn(m, 3, |j, a| p[j][a]);
+        let mut r = q.clone();
         let mut answer = vec![0; m];
         let rows: Vec<usize> = (0..m).collect();
-        assert!(certify_nearest_rows(r.as_ref(), r.as_ref(), &p[1..], &p, &rows, &mut answer, 0).is_err());
-        assert!(certify_nearest_rows(r.as_ref(), r.as_ref(), &p, &p, &rows[1..], &mut answer, 0).is_err());
+        assert!(certify_nearest_rows(r.as_mut(), q.as_ref(), &p[1..], &p, &rows, &mut answer, 0).is_err());
+        assert!(certify_nearest_rows(r.as_mut(), q.as_ref(), &p, &p, &rows[1..], &mut answer, 0).is_err());
         let mut bad = answer.clone();
         bad[0] = m;
-        assert!(certify_nearest_rows(r.as_ref(), r.as_ref(), &p, &p, &rows, &mut bad, 0).is_err());
-        let mut nan = r.clone();
+        assert!(certify_nearest_rows(r.as_mut(), q.as_ref(), &p, &p, &rows, &mut bad, 0).is_err());
+        let mut nan = q.clone();
         nan[(2, 1)] = f64::NAN;
-        assert!(certify_nearest_rows(nan.as_ref(), r.as_ref(), &p, &p, &rows, &mut answer, 0).is_err());
+        assert!(certify_nearest_rows(nan.as_mut(), q.as_ref(), &p, &p, &rows, &mut answer, 0).is_err());
     }
 }

@@ -443,7 +443,8 @@ pub(crate) struct PipelineArgs {
     #[arg(long, default_value_t = defaults().axiomatic.near.inverse_above_pairs)]
     pub(crate) near_inverse_above: u64,
     /// Vertex pairs n·m up to which the final map X → Y, where searched near the samples' map, is
-    /// made exact by a certificate (bounds rule out the cells of Y that cannot hold a nearer vertex).
+    /// made exact by a certificate (bounds rule out the cells of Y that cannot hold a nearer
+    /// vertex); the default, 2⁶⁴ − 1, is every size.
     #[arg(long, default_value_t = defaults().axiomatic.near.certified_up_to)]
     pub(crate) near_certified_up_to: u64,
     /// Which maps the axiomatic method looks for (orientation term and signed descriptors).

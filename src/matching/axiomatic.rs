@@ -123,8 +123,8 @@ fn coarse_zoomout_default() -> bool {
 /// one-rings only; and every point map (those one-rings, the final X → Y and Y → X maps) matches
 /// each vertex among the vertices of the other shape in the `cells` Voronoi cells nearest to the
 /// image of its own sample ([`crate::pointwise::nearest_neighbors_near`]). Below it, every
-/// search is exact. Up to `certified_up_to` vertex pairs the final map X → Y searched that way
-/// is then made exact: a certificate checks every restricted answer against every vertex of Y by
+/// search is exact. Up to `certified_up_to` vertex pairs (by default, always) the final map X → Y
+/// searched that way is then made exact: a certificate checks every restricted answer against every vertex of Y by
 /// bounds and corrects it ([`crate::certified_search`]). The exact searches cost O(n · m · k):
 /// 2·10¹³ flops for the 330-dimensional embedding of the polish at 250k vertices per shape,
 /// 10¹⁴ at 840k.
@@ -147,19 +147,18 @@ pub struct NearSearch {
     pub inverse_above_pairs: u64,
     /// n · m up to which the final map X → Y, where it is searched near the samples' map, is
     /// made exact by a certificate ([`crate::certified_search`]: bounds rule out the cells of Y
-    /// that cannot hold a nearer row, the rest is searched). The default 10¹⁰ (100k × 100k
-    /// vertices) makes the final map of every dev and benchmark pair (up to tosca_hires' 52k)
-    /// equal to the exact search's; above, the certificate costs more than the 3-minute budget
-    /// of a 10⁶-vertex pair allows (47.6 s at 840k, EXPERIMENTS.md "A provably exact final
-    /// map"), and the map stays restricted. The map Y → X is never certified (1.0 s more at
-    /// 28k, 1.1 s at 52k).
+    /// that cannot hold a nearer row, the rest is searched). The default, `u64::MAX`, certifies
+    /// every size, so the final map X → Y always equals the exact search's: 0.45 s at 52k
+    /// vertices per shape, about 11 s at 840k (EXPERIMENTS.md, "The certificate at 840k"). A
+    /// lower value skips it above that size (the map then stays restricted, not proven). The
+    /// map Y → X is never certified: it is read near the returned map.
     #[serde(default = "certified_up_to_default")]
     pub certified_up_to: u64,
 }
 
-/// The default of [`NearSearch::certified_up_to`] (10⁵ × 10⁵ vertex pairs).
+/// The default of [`NearSearch::certified_up_to`]: every size.
 fn certified_up_to_default() -> u64 {
-    10_000_000_000
+    u64::MAX
 }
 
 /// The default of [`NearSearch::inverse_above_pairs`] (25k × 25k vertex pairs).

@@ -351,7 +351,8 @@ match_settings! {
     /// samples' map (the map X → Y stays exact up to `near_above`).
     near_inverse_above: u64,
     /// Vertex pairs n·m up to which the axiomatic method's final map X → Y, where it is searched
-    /// near the samples' map, is made exact by a certificate (`crate::certified_search`).
+    /// near the samples' map, is made exact by a certificate (`crate::certified_search`; by
+    /// default at every size).
     near_certified_up_to: u64,
     /// X is a part of Y: true matches it with the partial path ([`super::partial`]), false as a
     /// whole shape; unset, the axiomatic method detects a part ([`super::partial::detect`]).

@@ -190,10 +190,10 @@ fn bijective_map_near(
     let (all_x, all_y): (Vec<usize>, Vec<usize>) = ((0..phi.nrows()).collect(), (0..psi.nrows()).collect());
     // The query rows [Φ_i, 0] are Φ's first k columns, read in place (the restricted search
     // takes the missing column as zero): no n × (k + 1) copy; the reference ×½ to match.
-    let reference = bijective_reference(psi, c_yx, c_xy, w, &all_y, 0.5);
+    let mut reference = bijective_reference(psi, c_yx, c_xy, w, &all_y, 0.5);
     let query = phi.subcols(0, c_yx.nrows());
     let images = sample_images_near(reference.as_ref(), query, sx, y_cells, near)?;
-    rows_near_exact(reference.as_ref(), query, near, (sx, &images, y_cells), &all_x)
+    rows_near_exact(&mut reference, query, near, (sx, &images, y_cells), &all_x)
 }
 
 /// Pins ([`bijective_polish_pinned`]) as positions in the samples of both shapes: (position in

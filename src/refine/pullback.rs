@@ -160,7 +160,7 @@ pub fn map_of_pullback(
 /// in the `near.cells` cells around `x_cells`. Errors as [`map_of_pullback`].
 pub fn map_yx_of_pullback(phi: MatRef<f64>, psi: MatRef<f64>, c_yx: MatRef<f64>, scope: Scope) -> Result<Vec<usize>> {
     let (kx, ky) = check_map_fits(phi, psi, c_yx)?;
-    let reference = mul(phi.subcols(0, kx), c_yx);
+    let mut reference = mul(phi.subcols(0, kx), c_yx);
     match scope {
         Scope::Exact => {
             let query = Mat::from_fn(psi.nrows(), ky, |j, b| psi[(j, b)]);
@@ -170,7 +170,7 @@ pub fn map_yx_of_pullback(phi: MatRef<f64>, psi: MatRef<f64>, c_yx: MatRef<f64>,
             let (query, back) = (psi.subcols(0, ky), near.reversed());
             let images = sample_images_near(reference.as_ref(), query, y_cells, x_cells, &back)?;
             let all: Vec<usize> = (0..psi.nrows()).collect();
-            rows_near_exact(reference.as_ref(), query, &back, (y_cells, &images, x_cells), &all)
+            rows_near_exact(&mut reference, query, &back, (y_cells, &images, x_cells), &all)
         }
     }
 }
@@ -181,19 +181,26 @@ pub fn map_yx_of_pullback(phi: MatRef<f64>, psi: MatRef<f64>, c_yx: MatRef<f64>,
 /// query). The final point maps of large pairs: the exact search's maps at a fraction of its
 /// cost. The certificate (rows read, answers changed) goes to the log.
 pub(crate) fn rows_near_exact(
-    reference: MatRef<f64>,
+    reference: &mut Mat<f64>,
     query: MatRef<f64>,
     near: &Near,
     cells: (&[usize], &[usize], &[usize]),
     rows: &[usize],
 ) -> Result<Vec<usize>> {
-    let mut map = rows_near(reference, query, near, cells, rows)?;
+    let mut map = rows_near(reference.as_ref(), query, near, cells, rows)?;
     if !near.certify {
         return Ok(map);
     }
     let t0 = std::time::Instant::now();
-    let cert =
-        crate::certified_search::certify_nearest_rows(reference, query, near.y, near.x, rows, &mut map, CERTIFY_SEED)?;
+    let cert = crate::certified_search::certify_nearest_rows(
+        reference.as_mut(),
+        query,
+        near.y,
+        near.x,
+        rows,
+        &mut map,
+        CERTIFY_SEED,
+    )?;
     if std::env::var_os("FUNCORR_DEBUG_CERTIFIED").is_some() {
         eprintln!(
             "certified search: {} queries, {} rows, {:.3} % of the rows read per query, {:.1} cells bounded per query, {} answers changed, {:.2} s",
