@@ -131,11 +131,11 @@ struct Level {
     stack: Mat<f64>,
 }
 
-/// The cells of the reference rows, top level first. The rows are in the tree's order (`order`:
-/// the row at position s is reference row `order[s]`), so every cell is a range of positions.
+/// The cells of the reference rows, top level first. The rows are in the tree's order (the
+/// `order` of [`CellTree::order`]: the row at position s is reference row `order[s]`), so every
+/// cell is a range of positions.
 struct CellTree {
     levels: Vec<Level>,
-    order: Vec<usize>,
     /// The position of every reference row in `order` (m).
     position: Vec<usize>,
     /// The squared norm of the row at every position (m), summed over the columns in order.
@@ -211,7 +211,7 @@ impl CellTree {
     /// the others a subspace of at most [`SUBSPACE`] directions ([`LEAF_SUBSPACE`] for the
     /// leaves). Every cell is a block of consecutive rows of `sorted` (nothing is copied), and
     /// writes its mean and basis straight into its slot of its level's stack.
-    fn new(sorted: MatRef<f64>, order: Vec<usize>, seed: u64) -> Result<CellTree> {
+    fn new(sorted: MatRef<f64>, order: &[usize], seed: u64) -> Result<CellTree> {
         let (m, d) = (sorted.nrows(), sorted.ncols());
         let depth = kd_depth(m, LEAF_ROWS);
         let step = FANOUT.trailing_zeros().max(1);
@@ -278,7 +278,7 @@ impl CellTree {
             position[j] = s;
         }
         let norms = crate::linalg::row_squared_norms(sorted);
-        Ok(CellTree { levels, order, position, norms, leaf_of })
+        Ok(CellTree { levels, position, norms, leaf_of })
     }
 }
 
@@ -747,15 +747,14 @@ pub fn certify_nearest_rows(
     let order = CellTree::order(reference_positions);
     permute_rows(reference.rb_mut(), &order, false);
     let t0 = std::time::Instant::now();
-    let tree = CellTree::new(reference.rb(), order, seed);
+    let tree = CellTree::new(reference.rb(), &order, seed);
     if std::env::var_os("FUNCORR_DEBUG_CERTIFIED").is_some() {
         eprintln!("certified search: rows reordered and cells in {:.2} s", t0.elapsed().as_secs_f64());
     }
-    let result = tree.and_then(|tree| {
-        let found = certify_sorted(reference.rb(), &tree, query, query_positions, rows, answer, tol);
-        permute_rows(reference.rb_mut(), &tree.order, true);
-        found
-    });
+    let result =
+        tree.and_then(|tree| certify_sorted(reference.rb(), &tree, &order, query, query_positions, rows, answer, tol));
+    // Put back whatever happened (a cancelled or failed search too).
+    permute_rows(reference.rb_mut(), &order, true);
     let (pairs, rows_read, cells_bounded) = result?;
     let mut cert = Certificate { rows_read, cells_bounded, ..cert };
     for (s, j) in pairs {
@@ -767,8 +766,9 @@ pub fn certify_nearest_rows(
     Ok(cert)
 }
 
-/// Reorders the rows of `mat` in place: row s becomes row `order[s]` (`back`: row `order[s]`
-/// becomes row s, the inverse), one column at a time through one column of scratch per thread.
+/// Reorders the rows of `mat` in place: the new row s is the old row `order[s]` (`back`: the
+/// inverse, the new row `order[s]` is the old row s), one column at a time through one column of
+/// scratch per thread.
 fn permute_rows(mat: MatMut<f64>, order: &[usize], back: bool) {
     let m = mat.nrows();
     mat.par_col_iter_mut().for_each_init(
@@ -791,9 +791,11 @@ fn permute_rows(mat: MatMut<f64>, order: &[usize], back: bool) {
 /// The work of [`certify_nearest_rows`] on the reference rows in the tree's order (`sorted`, m ×
 /// d): the exact answers of the query groups as (position in `rows`, reference row id) pairs, the
 /// rows read and the cells bounded.
+#[allow(clippy::too_many_arguments)]
 fn certify_sorted(
     sorted: MatRef<f64>,
     tree: &CellTree,
+    order: &[usize],
     query: MatRef<f64>,
     query_positions: &[[f64; 3]],
     rows: &[usize],
@@ -831,7 +833,7 @@ fn certify_sorted(
                 }
                 read.sort_unstable();
                 read.dedup();
-                (nearest_among(sorted, &tree.order, &tree.norms, &read, queries.as_ref(), &qn2), read.len())
+                (nearest_among(sorted, order, &tree.norms, &read, queries.as_ref(), &qn2), read.len())
             };
             // First the leaves that hold the group's answers: the group's queries are
             // neighbours, so where a restricted answer is far off, its neighbours' answers
@@ -936,6 +938,23 @@ mod tests {
         let mut answer: Vec<usize> = exact.iter().map(|&j| j + half).collect();
         certify_nearest_rows(reference.as_mut(), query.as_ref(), &p, &p, &rows, &mut answer, 5).unwrap();
         assert_eq!(answer, exact);
+        assert!(reference == original);
+    }
+
+    /// A cancelled certificate returns the cancellation and leaves the reference in its order.
+    #[test]
+    fn a_cancelled_certificate_puts_the_rows_back() {
+        let p = crate::primitives::icosphere(3).vertices().to_vec();
+        let m = p.len();
+        let original = Mat::from_fn(m, 4, |j, a| p[j][a % 3] * (1.0 + a as f64));
+        let mut reference = original.clone();
+        let rows: Vec<usize> = (0..m).collect();
+        let mut answer = vec![0; m];
+        let monitor = crate::progress::Monitor::new();
+        monitor.cancel();
+        let r =
+            monitor.run(|| certify_nearest_rows(reference.as_mut(), original.as_ref(), &p, &p, &rows, &mut answer, 2));
+        assert!(matches!(r, Err(Error::Cancelled { .. })), "{r:?}");
         assert!(reference == original);
     }
 
