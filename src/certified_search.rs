@@ -583,53 +583,6 @@ crate::linalg::at_vector_width! {
     fn cell_bounds(prod: MatRef<f64>, o: usize, cell: &Cell, qn2: &[f64], x2: &mut [f64], lb2: &mut [f64]) = cell_bounds_generic
 }
 
-/// The cells of the run `run` of a level (with rows) whose LB(c, C) (module documentation) for
-/// one point `c` (1 × d, squared norm `cn2`) is at most `reach`, in order: one product of `c` with
-/// the run's stacked columns (`row`: scratch of at least their number), the rounding slack as in
-/// [`bound_run`].
-fn cells_within(
-    level: &Level,
-    run: Range<usize>,
-    c: MatRef<f64>,
-    cn2: f64,
-    reach: f64,
-    row: &mut Mat<f64>,
-) -> Vec<usize> {
-    let (first, last) = (&level.cells[run.start], &level.cells[run.end - 1]);
-    let cols = first.at..last.at + 1 + last.lo.len();
-    if row.ncols() < cols.len() {
-        *row = Mat::zeros(1, cols.len());
-    }
-    matmul(
-        row.as_mut().subcols_mut(0, cols.len()),
-        Accum::Replace,
-        c,
-        level.stack.subcols(cols.start, cols.len()),
-        1.0,
-        Par::Seq,
-    );
-    let reach2 = reach * reach;
-    run.filter(|&t| {
-        let cell = &level.cells[t];
-        if cell.rows.is_empty() {
-            return false;
-        }
-        let o = cell.at - cols.start;
-        let v2 = cn2 - 2.0 * row[(0, o)] + cell.mean_sq;
-        let (mut x2, mut box2) = (0.0, 0.0);
-        for k in 0..cell.lo.len() {
-            let x = row[(0, o + 1 + k)] - cell.basis_mean[k];
-            x2 += x * x;
-            let out = (cell.lo[k] - x).max(x - cell.hi[k]).max(0.0);
-            box2 += out * out;
-        }
-        let slack = 1e-12 * (cn2 + cell.mean_sq);
-        let normal = ((v2 - x2 - slack).max(0.0).sqrt() - cell.eps).max(0.0);
-        box2 + normal * normal <= reach2
-    })
-    .collect()
-}
-
 /// The leaves that some query of a group cannot rule out with the squared thresholds `limit2`,
 /// found top down; and the number of cells bounded.
 fn candidate_leaves(tree: &CellTree, queries: MatRef<f64>, qn2: &[f64], limit2: &[f64]) -> (Vec<usize>, u64) {
@@ -640,13 +593,14 @@ fn candidate_leaves(tree: &CellTree, queries: MatRef<f64>, qn2: &[f64], limit2: 
     let c: Vec<f64> = (0..d).map(|a| (0..g).map(|i| queries[(i, a)]).sum::<f64>() / g as f64).collect();
     let cn2: f64 = c.iter().map(|x| x * x).sum();
     let cm = MatRef::from_row_major_slice(&c, 1, d);
-    let mut row = Mat::<f64>::zeros(1, FANOUT * (1 + SUBSPACE));
+    let (cn2s, mut centre) = ([cn2], BoundScratch::new(1));
     let reach = (0..g)
         .map(|i| {
             let r2: f64 = (0..d).map(|a| (queries[(i, a)] - c[a]).powi(2)).sum();
             r2.sqrt() + limit2[i].sqrt() + 1e-12 * (qn2[i].sqrt() + cn2.sqrt())
         })
         .fold(0.0f64, f64::max);
+    let reach2 = reach * reach;
     let top: Range<usize> = 0..tree.levels[0].cells.len();
     let mut runs: Vec<Range<usize>> = std::iter::once(top).collect();
     let mut bounded = 0u64;
@@ -666,11 +620,15 @@ fn candidate_leaves(tree: &CellTree, queries: MatRef<f64>, qn2: &[f64], limit2: 
         for run in runs {
             // The centre's bound first (one product row for the run), then every query's for
             // the cells from the first to the last the centre leaves.
-            let alive = cells_within(level, run, cm, cn2, reach, &mut row);
-            let (Some(&first), Some(&last)) = (alive.first(), alive.last()) else {
+            let mut alive: Option<Range<usize>> = None;
+            bound_run(level, run, cm, &cn2s, &mut centre, |t, lb2| {
+                if lb2[0] <= reach2 {
+                    alive = Some(alive.as_ref().map_or(t, |a| a.start)..t + 1);
+                }
+            });
+            let Some(run) = alive else {
                 continue;
             };
-            let run = first..last + 1;
             bounded += run.len() as u64;
             bound_run(level, run, queries, qn2, &mut scratch, |t, lb2| {
                 if lb2.iter().zip(limit2).any(|(b, l)| b <= l) {
