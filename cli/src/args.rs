@@ -438,8 +438,8 @@ pub(crate) struct PipelineArgs {
     /// Cells of the other shape searched around each sample's image (--near-above).
     #[arg(long, default_value_t = defaults().axiomatic.near.cells)]
     pub(crate) near_cells: usize,
-    /// Vertex pairs n·m above which the map Y → X (map_yx.npy) is searched near the samples'
-    /// map while the map X → Y is still exact (up to --near-above).
+    /// Vertex pairs n·m above which the map Y → X (map_yx.npy) is searched near the final map
+    /// X → Y while that map is still exact (up to --near-above).
     #[arg(long, default_value_t = defaults().axiomatic.near.inverse_above_pairs)]
     pub(crate) near_inverse_above: u64,
     /// Vertex pairs n·m up to which the final map X → Y, where searched near the samples' map, is
@@ -447,6 +447,11 @@ pub(crate) struct PipelineArgs {
     /// vertex); the default, 2⁶⁴ − 1, is every size.
     #[arg(long, default_value_t = defaults().axiomatic.near.certified_up_to)]
     pub(crate) near_certified_up_to: u64,
+    /// Vertex pairs n·m up to which the map Y → X (map_yx.npy), where restricted, is searched
+    /// near the preimages of the map X → Y and made exact by a certificate; above, it is searched
+    /// near the samples' map, not certified.
+    #[arg(long, default_value_t = defaults().axiomatic.near.inverse_certified_up_to)]
+    pub(crate) near_inverse_certified_up_to: u64,
     /// Which maps the axiomatic method looks for (orientation term and signed descriptors).
     #[arg(long, value_enum, default_value = "preserve")]
     pub(crate) orientation: OrientationChoice,

@@ -470,7 +470,8 @@ def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str
     ``completion_commutativity_k``, ``completion_prior``, ``l1_samples``, ``l1_precision``
     (``"f32"|"f64"``; ``l1_f32`` True is the same as ``"f32"``),
     ``map_check_every``, ``map_tolerance``, ``precondition`` (``"off"|"quadratic"|"full"``),
-    ``xi_stages``, ``multiscale``, ``near_above``, ``near_cells``, ``near_inverse_above``, ``near_certified_up_to``;
+    ``xi_stages``, ``multiscale``, ``near_above``, ``near_cells``, ``near_inverse_above``, ``near_certified_up_to``,
+    ``near_inverse_certified_up_to``;
     ``partial`` (True: ``--partial``, X is a part of Y; False: ``--no-partial``; None, the
     default: detected); the Laplacian options of
     :func:`prepare`; ``seg_function``, ``threshold``, ``hks_time``; ``cache_dir``. An unknown

@@ -658,14 +658,21 @@ fn run_cow(
     let r = axiomatic::axiomatic_pipeline_cow(x, y, f, g, &opts.axiomatic)?;
     let mut stages = r.stages;
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
-    // The map Y → X from the final pull-back, searched as the final map X → Y was.
+    // The map Y → X from the final pull-back (NearSearch: exact, or certified exact, up to
+    // `inverse_certified_up_to` vertex pairs).
     let mut map_yx = timed(&mut stages, "map Y → X", || match (&r.near_samples, x.positions(), y.positions()) {
         (Some((sx, sy)), Some(px), Some(py)) => {
-            // Read near the map X → Y, not certified (NearSearch::certified_up_to is for the
-            // map the pipeline returns; certifying this one too costs 1.0 s at 28k vertices).
-            let near = crate::refine::Near { x: px, y: py, cells: opts.axiomatic.near.cells, certify: false };
-            let scope = crate::refine::Scope::Near { near: &near, x_cells: &sx.vertices, y_cells: &sy.vertices };
-            crate::refine::map_yx_of_pullback(phi, psi, r.c_yx.as_ref(), scope)
+            let near = &opts.axiomatic.near;
+            if (px.len() as u64).saturating_mul(py.len() as u64) <= near.inverse_certified_up_to {
+                // Near the preimages of the final map X → Y, then certified exact.
+                let near = crate::refine::Near { x: px, y: py, cells: near.cells, certify: true };
+                crate::refine::map_yx_near_map(phi, psi, r.c_yx.as_ref(), &near, &r.map_xy)
+            } else {
+                // Near the samples' map, not certified.
+                let near = crate::refine::Near { x: px, y: py, cells: near.cells, certify: false };
+                let scope = crate::refine::Scope::Near { near: &near, x_cells: &sx.vertices, y_cells: &sy.vertices };
+                crate::refine::map_yx_of_pullback(phi, psi, r.c_yx.as_ref(), scope)
+            }
         }
         _ => crate::refine::map_yx_of_pullback(phi, psi, r.c_yx.as_ref(), crate::refine::Scope::Exact),
     })?;

@@ -347,13 +347,16 @@ match_settings! {
     near_above: u64,
     /// Cells searched around each sample's image.
     near_cells: usize,
-    /// Vertex pairs n·m above which the axiomatic method's map Y → X is searched near the
-    /// samples' map (the map X → Y stays exact up to `near_above`).
+    /// Vertex pairs n·m above which the axiomatic method's map Y → X is searched near its final
+    /// map X → Y (which stays exact up to `near_above`).
     near_inverse_above: u64,
     /// Vertex pairs n·m up to which the axiomatic method's final map X → Y, where it is searched
     /// near the samples' map, is made exact by a certificate (`crate::certified_search`; by
     /// default at every size).
     near_certified_up_to: u64,
+    /// Vertex pairs n·m up to which the axiomatic method's map Y → X, where restricted, is
+    /// searched near the preimages of the map X → Y and certified exact (default 1e10).
+    near_inverse_certified_up_to: u64,
     /// X is a part of Y: true matches it with the partial path ([`super::partial`]), false as a
     /// whole shape; unset, the axiomatic method detects a part ([`super::partial::detect`]).
     partial: bool,
@@ -624,6 +627,9 @@ impl MatchSettings {
             cells: self.near_cells.unwrap_or(d.axiomatic.near.cells),
             inverse_above_pairs: self.near_inverse_above.unwrap_or(d.axiomatic.near.inverse_above_pairs),
             certified_up_to: self.near_certified_up_to.unwrap_or(d.axiomatic.near.certified_up_to),
+            inverse_certified_up_to: self
+                .near_inverse_certified_up_to
+                .unwrap_or(d.axiomatic.near.inverse_certified_up_to),
         };
         let opts = MatchOptions {
             method,

@@ -8,7 +8,8 @@
 //! function g on Y (in Ψ, m × k_Y) to those of g ∘ π on X (in Φ, n × k_X) — pyFM's `FM_12` with
 //! mesh1 = Y, and the transpose direction of the C of [`crate::fmap`]. Conversely, from C_yx the
 //! point map is read off by nearest neighbours ([`map_of_pullback`]; the map Y → X by
-//! [`map_yx_of_pullback`]). Estimating the map X → Y through
+//! [`map_yx_of_pullback`], or near the preimages of a map X → Y by [`map_yx_near_map`]).
+//! Estimating the map X → Y through
 //! its own pull-back (rather than through the push-forward C of the opposite direction) is the
 //! direction ZoomOut's analysis is for, and measurably better (EXPERIMENTS.md).
 //!
@@ -36,7 +37,9 @@ mod zoomout;
 pub use bijective::{
     bijective_polish, bijective_polish_pinned, bijective_zoomout, BijectiveOptions, POLISH_BIJECTIVITY,
 };
-pub use pullback::{map_of_pullback, map_of_pullback_among, map_yx_of_pullback, pullback, Near, Scope};
+pub use pullback::{
+    map_of_pullback, map_of_pullback_among, map_yx_near_map, map_yx_of_pullback, pullback, Near, Scope,
+};
 pub use quality::{
     incident_vertices, low_pass, metric_distortion, metric_distortion_around, orientation_agreement,
     orientation_agreement_around, repair_mirrored, vertex_orientation,

@@ -186,3 +186,32 @@ fn finer_levels_keep_the_exact_map() {
     let same = levels.iter().zip(&one).filter(|(a, b)| a == b).count();
     assert!(same as f64 >= 0.999 * n as f64, "{same} of {n}");
 }
+
+/// The map Y → X near the preimages of the map X → Y ([`map_yx_near_map`]): with the true map
+/// X → Y it is the inverse permutation, certified or not; with a map X → Y that folds a third of
+/// X onto one vertex of Y (Y's cells there have no preimage near them, or only wrong ones), the
+/// certified search is still the exact one (uncertified, over a quarter of its answers are
+/// not). Wrong sizes and `cells` = 0 are errors.
+#[test]
+fn the_map_back_near_the_preimages_is_the_exact_one() {
+    let (x, y, perm, inv, bx, by) = permuted_pair(40);
+    let (phi, psi) = (bx.eigenvectors.as_ref(), by.eigenvectors.as_ref());
+    let c = pullback(phi, psi, &Samples::all(&bx.mass), &perm, 40, 40).unwrap();
+    let near = |cells, certify| Near { x: x.vertices(), y: y.vertices(), cells, certify };
+    for certify in [false, true] {
+        assert_eq!(map_yx_near_map(phi, psi, c.as_ref(), &near(4, certify), &perm).unwrap(), inv);
+    }
+    let n = perm.len();
+    let folded: Vec<usize> =
+        (0..n).map(|i| if i % 3 == 0 || x.vertices()[i][0] > 0.3 { perm[0] } else { perm[i] }).collect();
+    let exact = map_yx_of_pullback(phi, psi, c.as_ref(), Scope::Exact).unwrap();
+    assert_eq!(map_yx_near_map(phi, psi, c.as_ref(), &near(4, true), &folded).unwrap(), exact);
+    // (Uncertified, the fold leaves half of the answers wrong: the certificate did the work.)
+    let uncertified = map_yx_near_map(phi, psi, c.as_ref(), &near(4, false), &folded).unwrap();
+    assert!(uncertified.iter().zip(&exact).filter(|(a, b)| a != b).count() > n / 4);
+    assert!(map_yx_near_map(phi, psi, c.as_ref(), &near(4, true), &perm[1..]).is_err());
+    assert!(map_yx_near_map(phi, psi, c.as_ref(), &near(0, false), &perm).is_err());
+    let mut out_of_range = perm.clone();
+    out_of_range[5] = n;
+    assert!(map_yx_near_map(phi, psi, c.as_ref(), &near(4, false), &out_of_range).is_err());
+}
