@@ -30,7 +30,8 @@ pub(crate) struct SpectrumArgs {
     /// Convergence tolerance on the relative residual ‖Wφ − λAφ‖_{A⁻¹} / λ_k of every pair.
     #[arg(long, default_value_t = 1e-8)]
     pub(crate) tol: f64,
-    /// Lanczos block size (default: 4 for k ≤ 120, 8 for k ≤ 250, else 16).
+    /// Lanczos block size (default: 4 for k ≤ 120, 8 for k ≤ 250 or fewer than 16,384 vertices,
+    /// else 16).
     #[arg(long)]
     pub(crate) block_size: Option<usize>,
     /// Seed of the random start block.

@@ -208,12 +208,16 @@ pub(super) fn lanczos(
     let (op, shift) = factor(lap, sqrt_m)?;
     let factor_seconds = t0.elapsed().as_secs_f64();
     // Measured on FAUST (5k), TOSCA cat (28k) and david (52k): small blocks win for small k
-    // (higher Krylov degree per dimension), larger ones for large k (better GEMM efficiency).
+    // (higher Krylov degree per dimension), larger ones for large k (better GEMM efficiency) —
+    // except below CHUNKS.parallel_from rows, where the basis products run on one core and 16
+    // columns buy less than they cost: k = 350 on tr_reg_000 (4,999 vertices), fastest of 7,
+    // 0.661 s with 16, 0.528 s with 8 (cat0, 28k: 2.48 against 2.65 s; david0: 4.79 against
+    // 4.96 s, fastest of 3).
     let mut b = opts
         .block_size
         .unwrap_or(if k <= 120 {
             4
-        } else if k <= 250 {
+        } else if k <= 250 || lap.n() < CHUNKS.parallel_from {
             8
         } else {
             16
@@ -398,7 +402,7 @@ fn lanczos_run(
         crate::progress::step(converged, k)?;
         if std::env::var_os("FUNCORR_DEBUG_LANCZOS").is_some() {
             let worst = resid.iter().copied().fold(0.0, f64::max);
-            eprintln!("restart {} p {p} converged {converged}/{k} worst {worst:.2e} tol {tol:.1e} seconds solve/reorth/block/ritz/restart {phase_seconds:.2?}", info.restarts);
+            eprintln!("restart {} p {p} converged {converged}/{k} worst {worst:.2e} tol {tol:.1e} seconds solve/reorth/block/ritz/restart {phase_seconds:.3?}", info.restarts);
         }
         // Ritz vectors the next restart keeps (fewer after a failed final check, below).
         let mut kept = keep;

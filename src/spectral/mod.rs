@@ -51,7 +51,8 @@ pub struct SpectralOptions {
     pub tol: f64,
     /// Acceptance threshold on the verified relative residual of every returned pair.
     pub max_residual: f64,
-    /// Block size b of the Lanczos method (None: automatic, 4 for k ≤ 120, 8 for k ≤ 250, else 16).
+    /// Block size b of the Lanczos method (None: automatic, 4 for k ≤ 120, 8 for k ≤ 250 or
+    /// fewer than 16,384 vertices, else 16).
     pub block_size: Option<usize>,
     /// Maximum number of restarts before giving up.
     pub max_restarts: usize,
