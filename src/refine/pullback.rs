@@ -176,14 +176,14 @@ pub fn map_yx_of_pullback(phi: MatRef<f64>, psi: MatRef<f64>, c_yx: MatRef<f64>,
 }
 
 /// [`map_yx_of_pullback`] searched near the preimages of the point map X → Y `map_xy` (length
-/// n, vertices of Y): Y is cut into cells of about [`FINE_CELL`] vertices (the Euclidean
+/// n, vertices of Y): Y is cut into cells of about 32 vertices (`FINE_CELL`; the Euclidean
 /// Voronoi cells of grid samples), and every vertex j of Y is matched among the vertices of X
 /// that `map_xy` sends into the `near.cells` cells nearest to j's cell that receive any, then
 /// the answers are certified when `near.certify` ([`crate::certified_search`]). `near` is
 /// oriented X → Y (as for `map_xy`). Where the map X → Y is right, the nearest row of j lies
 /// there: the exact answer's image under `map_xy` lies within a few edge lengths of j (david0 →
 /// david1, 52k vertices: 99 % within 4.2 mean edge lengths), on every sheet that `map_xy` folds
-/// onto that place; a search around one coarse image ([`sample_images_near`]) misses the other
+/// onto that place; a search around one coarse image (`sample_images_near`) misses the other
 /// sheets (5.5 % of the answers wrong on that pair, up to 56 edge lengths away; here 8, all
 /// corrected by the certificate). The cost grows with the square of the local vertex density
 /// (the cells are even in space): 0.4 s at 52k vertices per shape, 71 s at 840k (TOSCA's
