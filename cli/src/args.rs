@@ -252,6 +252,19 @@ pub(crate) enum OptimizerChoice {
 
 /// `funcorr match`'s default data, camera and image size (also the demo's).
 pub(crate) const DEFAULT_DATA: &str = "wks";
+
+/// A count of vertex pairs n·m (`--near-above` and the like): an integer, or a whole number
+/// written as a float ("1e10", "2.5e9"), from 0 to 2⁶⁴ − 1.
+pub(crate) fn vertex_pairs(s: &str) -> Result<u64, String> {
+    if let Ok(v) = s.parse::<u64>() {
+        return Ok(v);
+    }
+    match s.parse::<f64>() {
+        // 2⁶⁴ is the first f64 above u64's range.
+        Ok(v) if v.is_finite() && v >= 0.0 && v.fract() == 0.0 && v < 18_446_744_073_709_551_616.0 => Ok(v as u64),
+        _ => Err(format!("'{s}' is not a whole number of vertex pairs from 0 to 2^64 - 1 (e.g. 2000000000 or 2e9)")),
+    }
+}
 pub(crate) const DEFAULT_VIEW: &str = "0,0";
 pub(crate) const DEFAULT_SIZE: &str = "1600x900";
 
@@ -433,24 +446,24 @@ pub(crate) struct PipelineArgs {
     pub(crate) no_partial: bool,
     /// Vertex pairs n·m above which the axiomatic method's final point maps are searched near
     /// the map of its samples instead of exactly (large shapes).
-    #[arg(long, default_value_t = defaults().axiomatic.near.above_pairs)]
+    #[arg(long, default_value_t = defaults().axiomatic.near.above_pairs, value_parser = vertex_pairs)]
     pub(crate) near_above: u64,
     /// Cells of the other shape searched around each sample's image (--near-above).
     #[arg(long, default_value_t = defaults().axiomatic.near.cells)]
     pub(crate) near_cells: usize,
     /// Vertex pairs n·m above which the map Y → X (map_yx.npy) is searched near the final map
     /// X → Y while that map is still exact (up to --near-above).
-    #[arg(long, default_value_t = defaults().axiomatic.near.inverse_above_pairs)]
+    #[arg(long, default_value_t = defaults().axiomatic.near.inverse_above_pairs, value_parser = vertex_pairs)]
     pub(crate) near_inverse_above: u64,
     /// Vertex pairs n·m up to which the final map X → Y, where searched near the samples' map, is
     /// made exact by a certificate (bounds rule out the cells of Y that cannot hold a nearer
     /// vertex); the default, 2⁶⁴ − 1, is every size.
-    #[arg(long, default_value_t = defaults().axiomatic.near.certified_up_to)]
+    #[arg(long, default_value_t = defaults().axiomatic.near.certified_up_to, value_parser = vertex_pairs)]
     pub(crate) near_certified_up_to: u64,
     /// Vertex pairs n·m up to which the map Y → X (map_yx.npy), where restricted, is searched
     /// near the preimages of the map X → Y and made exact by a certificate; above, it is searched
     /// near the samples' map, not certified.
-    #[arg(long, default_value_t = defaults().axiomatic.near.inverse_certified_up_to)]
+    #[arg(long, default_value_t = defaults().axiomatic.near.inverse_certified_up_to, value_parser = vertex_pairs)]
     pub(crate) near_inverse_certified_up_to: u64,
     /// Which maps the axiomatic method looks for (orientation term and signed descriptors).
     #[arg(long, value_enum, default_value = "preserve")]

@@ -338,6 +338,26 @@ mod tests {
         serde_json::to_value(o).unwrap()
     }
 
+    /// Vertex-pair counts are read as integers or as whole numbers in float notation; anything
+    /// else (a fraction, a negative, beyond 2⁶⁴ − 1, not a number) is an error naming the value.
+    #[test]
+    fn vertex_pair_counts_take_float_notation() {
+        let o =
+            resolved(&["--near-above", "2e9", "--near-certified-up-to", "1e13", "--near-inverse-above", "625000000"]);
+        assert_eq!(
+            (o.axiomatic.near.above_pairs, o.axiomatic.near.certified_up_to, o.axiomatic.near.inverse_above_pairs),
+            (2_000_000_000, 10_000_000_000_000, 625_000_000)
+        );
+        let o = resolved(&["--near-inverse-certified-up-to", "0"]);
+        assert_eq!(o.axiomatic.near.inverse_certified_up_to, 0);
+        for bad in ["1.5", "-1", "2e19", "inf", "NaN", "ten"] {
+            let flag = format!("--near-above={bad}");
+            let line = ["funcorr", "match", "X", "Y", "-o", "out", flag.as_str()];
+            let e = Cli::try_parse_from(line).err().expect(bad).to_string();
+            assert!(e.contains(bad) && e.contains("vertex pairs"), "{bad}: {e}");
+        }
+    }
+
     /// The library's defaults are what `funcorr match` runs, method by method and for scarce
     /// and rich data; an option given on the command line changes them.
     #[test]
