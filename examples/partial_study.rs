@@ -12,7 +12,8 @@
 //! ```
 //! `MODE=always|auto|never` (default `always`: `--partial`); `SLOPE=s` the slope of the
 //! rectangular maps (default 1); `SEEDED=n` the sample maps from distances alone probed (default
-//! 0: none); `SCALE=area|distances` the area ratio as it is or estimated from distance-only maps
+//! 0: none); `METRIC_ANCHORS=a` the anchors of the metric polish (default 128; 0: off);
+//! `SCALE=area|distances` the area ratio as it is or estimated from distance-only maps
 //! (default: from the heat kernels, `PartialScale::Heat`);
 //! `KBASIS=k` the eigenpairs per shape (default 200);
 //! `CLOUD=x` the parts as point clouds of their vertices. `UNITS=1` every shape in its own unit
@@ -93,6 +94,9 @@ fn main() -> Result<()> {
     }
     if let Ok(s) = std::env::var("SEEDED") {
         opts.partial.seeded = s.parse().expect("SEEDED");
+    }
+    if let Ok(s) = std::env::var("METRIC_ANCHORS") {
+        opts.partial.metric_anchors = s.parse().expect("METRIC_ANCHORS");
     }
     let detect_only = std::env::var("DETECT").is_ok();
     // The bases of `funcorr match` (the detection's heat kernels need them as the pipeline has
@@ -260,9 +264,17 @@ fn main() -> Result<()> {
                     String::new()
                 };
                 let chosen = r.candidates.as_ref().map_or(0, |(c, i)| c[*i].k);
+                // The metric polish: seconds and vertices moved per round.
+                let polish = match r.partial.as_ref().and_then(|d| d.metric_polish.as_ref()) {
+                    Some(p) => {
+                        let t = r.stages.iter().find(|(s, _)| s == "metric polish").map_or(0.0, |(_, t)| *t);
+                        format!("{{\"seconds\":{t:.3},\"moved\":{:?},\"metric_rounds\":{}}}", p.moved, p.metric_rounds)
+                    }
+                    None => "null".to_string(),
+                };
                 let corrected = r.candidates.as_ref().is_some_and(|(c, i)| c[*i].corrected_from.is_some());
                 format!(
-                    "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"n\":{},\"ratio\":{:.3},\"partial\":{det},\"direct\":{d:.3},\"sym\":{s:.3},\"iou\":{iou:.3},\"points\":{},\"used\":{:.3},\"k\":{chosen},\"corrected\":{corrected},\"C\":[{},{}],\"true_ratio\":{true_ratio:.3},\"seconds\":{secs:.2}{diag}}}",
+                    "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"n\":{},\"ratio\":{:.3},\"partial\":{det},\"direct\":{d:.3},\"sym\":{s:.3},\"iou\":{iou:.3},\"points\":{},\"used\":{:.3},\"k\":{chosen},\"corrected\":{corrected},\"C\":[{},{}],\"true_ratio\":{true_ratio:.3},\"seconds\":{secs:.2},\"polish\":{polish}{diag}}}",
                     x.n(),
                     x.area / y.area,
                     present.len(),

@@ -134,6 +134,11 @@ impl GraphGeodesics {
         Self::from_edges(points.len(), &edges)
     }
 
+    /// The neighbours of vertex `v` and the lengths of the edges to them. Panics when v ≥ n.
+    pub fn neighbours(&self, v: usize) -> &[(u32, f64)] {
+        &self.adj[self.start[v]..self.start[v + 1]]
+    }
+
     /// Number of vertices n.
     pub fn n(&self) -> usize {
         self.start.len() - 1

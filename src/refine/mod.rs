@@ -1,7 +1,7 @@
 //! Point-wise refinement of functional maps: ZoomOut (Melzi et al. 2019) on vertex samples, its
 //! bijective two-direction variant (the discrete solver of Ren, Melzi, Wonka, Ovsjanikov 2021
-//! with bijectivity and coupling terms), and the quality of point maps (orientation agreement,
-//! metric distortion).
+//! with bijectivity and coupling terms), a metric polish by geodesic trilateration, and the
+//! quality of point maps (orientation agreement, metric distortion).
 //!
 //! **Conventions.** A point map π: X → Y is `map_xy` (length n, for every vertex of X a vertex of
 //! Y). Its pull-back functional map `C_yx = Φᵀ A_X Π Ψ` (k_X × k_Y) takes the coefficients of a
@@ -25,11 +25,14 @@
 //! **Files, by concern.** `pullback.rs`: pull-back maps and the point maps read off them
 //! ([`pullback`], [`map_of_pullback`], [`Scope`], [`Near`]); `zoomout.rs`: ZoomOut on samples
 //! ([`zoomout`]); `bijective.rs`: bijective ZoomOut and the bijective polish
-//! ([`bijective_zoomout`], [`bijective_polish`]); `quality.rs`: the quality of a point map
+//! ([`bijective_zoomout`], [`bijective_polish`]); `metric.rs`: the metric polish of a point map
+//! by geodesic trilateration to anchors, combined with a spectral reading ([`metric_polish`],
+//! the partial path's last step); `quality.rs`: the quality of a point map
 //! ([`metric_distortion`], [`orientation_agreement`] and their estimates around samples,
 //! [`vertex_orientation`], [`repair_mirrored`]).
 
 mod bijective;
+mod metric;
 mod pullback;
 mod quality;
 mod zoomout;
@@ -37,6 +40,7 @@ mod zoomout;
 pub use bijective::{
     bijective_polish, bijective_polish_pinned, bijective_zoomout, BijectiveOptions, POLISH_BIJECTIVITY,
 };
+pub use metric::{metric_polish, MetricPolishOptions, MetricPolished};
 pub use pullback::{
     map_of_pullback, map_of_pullback_among, map_yx_near_map, map_yx_of_pullback, pullback, Near, Scope,
 };
