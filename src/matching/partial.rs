@@ -129,7 +129,8 @@ pub struct PartialOptions {
     #[serde(default)]
     pub scale: PartialScale,
     /// Anchors (farthest-point samples of X) of the metric polish of the final map (module
-    /// docs, step 5; default [`METRIC_ANCHORS`]; 0: no polish).
+    /// docs, step 5; default [`METRIC_ANCHORS`]; 0: no polish; skipped when m times this
+    /// exceeds [`METRIC_MAX_ENTRIES`]).
     #[serde(default = "metric_anchors")]
     pub metric_anchors: usize,
 }
@@ -138,6 +139,10 @@ pub struct PartialOptions {
 /// with an earlier schedule of the polish, 64 anchors left 9 % of the vertices off the
 /// identity, 96 and 128 none; EXPERIMENTS.md).
 pub const METRIC_ANCHORS: usize = 128;
+
+/// The metric polish runs when m · [`PartialOptions::metric_anchors`] is at most this (2·10⁷:
+/// about 500 MB of distance fields and sorted lists; 128 anchors up to m = 156,250).
+pub const METRIC_MAX_ENTRIES: usize = 20_000_000;
 
 fn metric_anchors() -> usize {
     METRIC_ANCHORS
@@ -205,7 +210,7 @@ pub struct Detection {
     /// The area ratio the partial path used ([`PartialResult::area_ratio`]; None before it ran).
     pub used_ratio: Option<f64>,
     /// What the metric polish of the final map did ([`PartialResult::polish`]; None before the
-    /// partial path ran, or with the polish off).
+    /// partial path ran, with the polish off, or skipped for Y's size).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub metric_polish: Option<crate::refine::MetricPolished>,
     /// Why, in words.
@@ -995,7 +1000,10 @@ fn pass(
     };
     stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
     // The metric polish (module docs, step 5) with the final reading as its spectral term.
-    let (map_xy, polish) = if o.metric_anchors > 0 {
+    // Its memory is about 24 (n + m) A bytes (distance fields and the annulus lists): above
+    // METRIC_MAX_ENTRIES entries (m A) the polish is skipped (a part of a 10⁶-vertex whole).
+    let fits = y.n().saturating_mul(o.metric_anchors) <= METRIC_MAX_ENTRIES;
+    let (map_xy, polish) = if o.metric_anchors > 0 && fits {
         let t = std::time::Instant::now();
         crate::progress::stage("metric polish")?;
         let anchors = samples_of(x, o.metric_anchors.max(3))?.vertices;
