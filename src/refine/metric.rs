@@ -109,9 +109,16 @@ pub fn metric_polish(
     spectral: Option<(MatRef<f64>, MatRef<f64>)>,
 ) -> Result<MetricPolished> {
     let (n, m, a) = (dist_x.n_vertices(), gy.n(), anchors.len());
-    check(dist_y.n_vertices(), n, m, a, map_xy, o, spectral)?;
-    if let Some(&bad) = anchors.iter().find(|&&v| v >= n) {
-        return Err(Error::invalid("metric polish anchors", format!("vertex {bad} of X does not exist (n = {n})")));
+    check(dist_y.n_vertices(), n, m, anchors, map_xy, o, spectral)?;
+    let mut report = MetricPolished {
+        map_xy: map_xy.to_vec(),
+        scales: Vec::new(),
+        moved: Vec::new(),
+        metric_rounds: 0,
+        floors: None,
+    };
+    if o.rounds == 0 {
+        return Ok(report);
     }
     let dx = row_major(dist_x.distances_from(anchors)?.as_ref());
     let h = mean_edge(gy);
@@ -119,17 +126,14 @@ pub fn metric_polish(
     let spectral_residual = |x: usize, y: usize| -> f64 {
         spectral.map_or(0.0, |(q, r)| (0..q.ncols()).map(|k| (q[(x, k)] - r[(y, k)]).powi(2)).sum())
     };
-    let sigma_s = median((0..n).into_par_iter().map(|x| spectral_residual(x, map_xy[x])).collect());
-    let mut map = map_xy.to_vec();
-    let mut report =
-        MetricPolished { map_xy: Vec::new(), scales: Vec::new(), moved: Vec::new(), metric_rounds: 0, floors: None };
+    let sigma_s = match spectral {
+        Some(_) => median((0..n).into_par_iter().map(|x| spectral_residual(x, map_xy[x])).collect()),
+        None => 0.0,
+    };
+    let mut map = std::mem::take(&mut report.map_xy);
     // Rounds of the current phase (metric alone, then combined), and whether the metric's floor
     // is to be measured at the start of the next round (the metric phase is over).
     let (mut phase, mut floors_due) = (0, false);
-    if o.rounds == 0 {
-        report.map_xy = map;
-        return Ok(report);
-    }
     // d_Y(y, π(a_j)), m × A row-major, and the image each column was computed for.
     let (mut dy, mut images) = (vec![0.0; m * a], vec![None; a]);
     loop {
@@ -213,7 +217,7 @@ fn check(
     my: usize,
     n: usize,
     m: usize,
-    a: usize,
+    anchors: &[usize],
     map_xy: &[usize],
     o: &MetricPolishOptions,
     spectral: Option<(MatRef<f64>, MatRef<f64>)>,
@@ -227,8 +231,11 @@ fn check(
     if let Some(&bad) = map_xy.iter().find(|&&v| v >= m) {
         return Err(Error::invalid("map", format!("vertex {bad} of Y does not exist (m = {m})")));
     }
-    if a < 3 {
-        return Err(Error::invalid("metric polish anchors", format!("need at least 3, got {a}")));
+    if anchors.len() < 3 {
+        return Err(Error::invalid("metric polish anchors", format!("need at least 3, got {}", anchors.len())));
+    }
+    if let Some(&bad) = anchors.iter().find(|&&v| v >= n) {
+        return Err(Error::invalid("metric polish anchors", format!("vertex {bad} of X does not exist (n = {n})")));
     }
     if !(o.keep > 0.0 && o.keep <= 1.0) {
         return Err(Error::invalid("metric polish keep", format!("must be in (0, 1], got {}", o.keep)));
@@ -347,7 +354,7 @@ fn rings_around(g: &GraphGeodesics, v: usize, rings: usize, out: &mut Vec<usize>
         for i in start..end {
             for &(u, _) in g.neighbours(out[i]) {
                 let u = u as usize;
-                if !out[start..].contains(&u) && !out[..start].contains(&u) {
+                if !out.contains(&u) {
                     out.push(u);
                 }
             }
