@@ -11,13 +11,18 @@
 //! DETECT=1 cargo run --release --example partial_study -- ../shared/data/faust_r 0:97   # detection only
 //! ```
 //! `MODE=always|auto|never` (default `always`: `--partial`); `SLOPE=s` the slope of the
-//! rectangular maps (default 1); `SEEDED=n` the sample maps from distances alone probed (default
-//! 0: none); `METRIC_ANCHORS=a` the anchors of the metric polish (default 128; 0: off);
+//! rectangular maps (default 1); `SEEDED=n` the sample maps from distances alone probed as
+//! challengers of the spectral choice (default 4; 0: none); `METRIC_ANCHORS=a` the anchors of the metric polish (default 128; 0: off);
 //! `SCALE=area|distances` the area ratio as it is or estimated from distance-only maps
 //! (default: from the heat kernels, `PartialScale::Heat`);
 //! `KBASIS=k` the eigenpairs per shape (default 200);
 //! `CLOUD=x` the parts as point clouds of their vertices. `UNITS=1` every shape in its own unit
-//! (×10^u, u ∈ [−3, 3] from a hash of its name). `STRIDE=s` every s-th pair of the range. `DETECT=1`: no matching, the detection of every shape of the
+//! (×10^u, u ∈ [−3, 3] from a hash of its name). `STRIDE=s` every s-th pair of the range;
+//! `ONLY=i,j,…` these pairs of pairs.txt (0-based) instead. `DIAG=1` adds `diag`: the
+//! distortion of the result and of the truth on the search's samples at the used and the true
+//! ratio, their orientation, the chosen candidate and every candidate as [k, distortion,
+//! orientation, data misfit, corrected distortion, corrected orientation, kind (0 fit, 1
+//! corrected, 2 seeded), mean error of its sample map (as `direct`), dominance]. `DETECT=1`: no matching, the detection of every shape of the
 //! pairs against the pair's other shape (for whole data sets: none should be detected).
 //!
 //! Coverage truth: a vertex of Y is covered when its nearest template point of Y (Euclidean,
@@ -76,7 +81,12 @@ fn main() -> Result<()> {
     let (start, end): (usize, usize) = (a.parse().unwrap(), b.parse().unwrap());
     // STRIDE=s: every s-th pair of the range (default 1).
     let stride: usize = std::env::var("STRIDE").map_or(1, |s| s.parse().expect("STRIDE"));
-    let pairs: Vec<(String, String)> = all.into_iter().skip(start).take(end - start).step_by(stride.max(1)).collect();
+    let mut pairs: Vec<(String, String)> =
+        all.iter().skip(start).take(end - start).step_by(stride.max(1)).cloned().collect();
+    // ONLY=i,j,…: these pairs of pairs.txt (0-based) instead of the range.
+    if let Ok(s) = std::env::var("ONLY") {
+        pairs = s.split(',').map(|i| all[i.trim().parse::<usize>().expect("ONLY")].clone()).collect();
+    }
     let mode = match std::env::var("MODE").as_deref() {
         Ok("auto") => PartialMode::Auto,
         Ok("never") => PartialMode::Never,
@@ -253,12 +263,45 @@ fn main() -> Result<()> {
                     };
                     let (su, st) = (scaled(used), scaled(true_ratio));
                     use funcorr::matching::search::distortion as dist;
+                    let nb = funcorr::matching::search::sample_neighbours(&sx, 8);
+                    let (px, nx, py, ny) =
+                        (x.positions().unwrap(), x.normals().unwrap(), y.positions().unwrap(), y.normals().unwrap());
+                    let or = |im: &[usize]| funcorr::matching::search::orientation(px, nx, py, ny, xs, im, &nb);
+                    let cands: Vec<String> = r.candidates.as_ref().map_or(Vec::new(), |(c, _)| {
+                        c.iter()
+                            .map(|c| {
+                                let err = if c.sample_images.len() == true_images.len() {
+                                    let pr: Vec<(usize, usize)> =
+                                        true_images.iter().zip(&c.sample_images).map(|(&a, &b)| (a, b)).collect();
+                                    let d = geo.pair_distances(&pr).expect("distances");
+                                    100.0 * d.iter().sum::<f64>() / d.len() as f64 / sqrt_area
+                                } else {
+                                    f64::NAN
+                                };
+                                let ty = if c.seeded.is_some() { 2 } else if c.corrected_from.is_some() { 1 } else { 0 };
+                                format!(
+                                    "[{},{:.4},{:.3},{:.4},{:.4},{:.3},{ty},{err:.1},{:.2}]",
+                                    c.k,
+                                    c.distortion,
+                                    c.orientation,
+                                    c.data_misfit,
+                                    c.corrected_distortion,
+                                    c.corrected_orientation,
+                                    c.dominance
+                                )
+                            })
+                            .collect()
+                    });
                     format!(
-                        ",\"diag\":{{\"used\":[{:.4},{:.4}],\"true\":[{:.4},{:.4}]}}",
+                        ",\"diag\":{{\"used\":[{:.4},{:.4}],\"true\":[{:.4},{:.4}],\"orient\":[{:.3},{:.3}],\"chosen\":{},\"cands\":[{}]}}",
                         dist(&su, &sy, &images),
                         dist(&su, &sy, &true_images),
                         dist(&st, &sy, &images),
-                        dist(&st, &sy, &true_images)
+                        dist(&st, &sy, &true_images),
+                        or(&images),
+                        or(&true_images),
+                        r.candidates.as_ref().map_or(0, |(_, i)| *i),
+                        cands.join(",")
                     )
                 } else {
                     String::new()

@@ -265,6 +265,15 @@ pub struct Candidate {
     /// Whether the candidate was made from the landmarks alone (their trilateration).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub from_landmarks: bool,
+    /// For a seeded map of the partial path: the share of the search samples that its corrected
+    /// sample map fits better than the spectral choice's ([`super::search::dominance`]; it
+    /// replaces that choice from [`super::partial::SEEDED_DOMINANCE`] on; NaN otherwise).
+    #[serde(skip_serializing_if = "is_nan")]
+    pub dominance: f64,
+    /// The images of the search samples under its probe map (vertex ids of Y; the partial path
+    /// only, empty elsewhere; not in the report).
+    #[serde(skip)]
+    pub sample_images: Vec<usize>,
 }
 
 /// Whether a score is missing (NaN): not written to the report.
@@ -289,6 +298,8 @@ impl Candidate {
             seeded: None,
             landmark_error: f64::NAN,
             from_landmarks: false,
+            dominance: f64::NAN,
+            sample_images: Vec::new(),
         }
     }
 }
@@ -807,7 +818,7 @@ fn spread(n: usize, rows: &[usize], images: &[usize]) -> Vec<usize> {
 
 /// Whether a candidate's orientation agrees with the asked one (≥ 0 for preserving maps, ≤ 0 for
 /// reversing ones; NaN and `Ignore` always).
-fn agrees(c: &Candidate, orientation: Orientation) -> bool {
+pub(super) fn agrees(c: &Candidate, orientation: Orientation) -> bool {
     match orientation {
         Orientation::Preserve => c.orientation >= 0.0 || c.orientation.is_nan(),
         Orientation::Reverse => c.orientation <= 0.0 || c.orientation.is_nan(),

@@ -143,6 +143,44 @@ pub fn distortion(x: &SampleDistances, y: &SampleDistances, images: &[usize]) ->
     anchored_distortion(&x.distances, &y.distances, &anchors_of(y, images))
 }
 
+/// The distortion of every sample of X under a sample map: for sample i,
+/// mean_{j ≠ i} |d_X(s_i, s_j) − d_Y(π(s_i), π(s_j))| over the pairs at finite distance on both
+/// shapes (the terms of E(π) that involve sample i; Y's distances between the anchors nearest
+/// the images, as [`distortion`]), in X's units (`x`); ∞ for a sample without such a pair.
+/// `images`: vertex ids of Y, length `x.len()`. Length `x.len()`.
+pub fn sample_distortions(x: &SampleDistances, y: &SampleDistances, images: &[usize]) -> Vec<f64> {
+    let anchors = anchors_of(y, images);
+    let (dx, dy) = (&x.distances, &y.distances);
+    (0..anchors.len())
+        .map(|i| {
+            let (mut sum, mut count) = (0.0, 0usize);
+            for j in (0..anchors.len()).filter(|&j| j != i) {
+                let (a, b) = (dx[(i, j)], dy[(anchors[i], anchors[j])]);
+                if a.is_finite() && b.is_finite() {
+                    sum += (a - b).abs();
+                    count += 1;
+                }
+            }
+            if count > 0 {
+                sum / count as f64
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect()
+}
+
+/// The share of the samples that the sample map of distortions `b` fits better than the one of
+/// distortions `a` (both from [`sample_distortions`] on the same samples): the fraction of i with
+/// b_i < a_i, in [0, 1]; 0 for no samples.
+pub fn dominance(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    if n == 0 {
+        return 0.0;
+    }
+    a.iter().zip(b).filter(|(a, b)| b < a).count() as f64 / n as f64
+}
+
 fn anchored_distortion(dx: &Mat<f64>, dy: &Mat<f64>, anchors: &[usize]) -> f64 {
     let s = anchors.len();
     let (mut num, mut den) = (0.0, 0.0);
@@ -610,6 +648,48 @@ mod tests {
         assert!(!has_moved(&side, &side, wrong[20], fixed[20]));
         assert!(SampleDistances::new(&x, &mass, &g, 2).is_err());
         assert!(correct(&side, &side, &wrong[1..], None, 1).is_err());
+    }
+
+    /// The per-sample distortions are zero for the true map and grow at the misplaced samples
+    /// and their partners; their mean over the samples is E's numerator over its denominator up
+    /// to the pair weights; a better map dominates a worse one on every sample it changes.
+    #[test]
+    fn per_sample_distortions_and_dominance() {
+        let x = bumpy_sphere(3);
+        let n = x.n_vertices();
+        let mass = x.vertex_areas();
+        let g = GraphGeodesics::mesh_edges(&x).unwrap();
+        let side = SampleDistances::new(&x, &mass, &g, 40).unwrap();
+        let truth = side.samples.vertices.clone();
+        let zero = sample_distortions(&side, &side, &truth);
+        assert_eq!(zero.len(), 40);
+        assert!(zero.iter().all(|&v| v.abs() < 1e-12), "{zero:?}");
+        // Three samples sent to the farthest vertex from their place.
+        let far = |v: usize| {
+            let d = g.distances_from_vertex(v).unwrap();
+            (0..n).max_by(|&a, &b| d[a].total_cmp(&d[b])).unwrap()
+        };
+        let mut wrong = truth.clone();
+        for w in wrong.iter_mut().take(3) {
+            *w = far(*w);
+        }
+        let d = sample_distortions(&side, &side, &wrong);
+        // A misplaced sample is off against most others; a placed one against three at most.
+        assert!(d[..3].iter().all(|&v| v > 0.1), "{d:?}");
+        assert!(d[..3].iter().cloned().fold(f64::INFINITY, f64::min) > d[3..].iter().cloned().fold(0.0, f64::max));
+        // Relation to E: Σ_i d_i (s − 1) = 2 Σ_{i<j} |…| (every pair counted from both ends).
+        let e = distortion(&side, &side, &wrong);
+        let dx = &side.distances;
+        let den: f64 = (0..40).flat_map(|i| ((i + 1)..40).map(move |j| (i, j))).map(|(i, j)| dx[(i, j)]).sum();
+        let num = d.iter().sum::<f64>() * 39.0 / 2.0;
+        assert!((num / den - e).abs() < 1e-9 * e.max(1.0), "{} against {e}", num / den);
+        // The truth fits every sample at least as well, and strictly the changed ones.
+        let share = dominance(&d, &zero);
+        // Every sample has a misplaced partner, so the truth fits every one of them better.
+        assert!((0.9..=1.0).contains(&share), "{share}");
+        assert_eq!(dominance(&zero, &d), 0.0);
+        assert_eq!(dominance(&zero, &zero), 0.0);
+        assert_eq!(dominance(&[], &[]), 0.0);
     }
 
     /// Maps found from distances alone: on a shape against itself the best fits the distances
