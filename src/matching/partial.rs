@@ -906,10 +906,10 @@ fn pass(
         candidate.sample_images = images.clone();
         let mut corrected = [None, None];
         // The bottom of its basin: the sample map corrected by distances and data. A fit's comes
-        // with its corrections below; a candidate made of a sample map is corrected here, so that
-        // the maps compared with the seeded ones (below) are corrected alike.
+        // with its corrections below; with seeded challengers, a candidate made of a sample map
+        // is corrected here, so that the maps compared with them (below) are corrected alike.
         let mut basin = Vec::new();
-        if !correct && p.search.rounds > 0 {
+        if !correct && o.seeded > 0 && p.search.rounds > 0 {
             let (fixed, report) = search::correct(&s.x, &s.y, &images, Some(&s.descriptors), p.search.rounds)?;
             candidate.corrected_distortion = report.trace.iter().copied().fold(f64::INFINITY, f64::min);
             candidate.corrected_orientation = search::orientation(px, nx, py, ny, xs, &fixed, &s.neighbours);
@@ -1025,8 +1025,8 @@ fn pass(
         .min_by(|&a, &b| candidates[a].corrected_distortion.total_cmp(&candidates[b].corrected_distortion));
     if let Some(b) = challenger {
         let of = |i: usize| search::sample_distortions(&s.x, &s.y, &probed[i].basin);
-        let (da, db) = (of(chosen), of(b));
-        let share = if probed[chosen].basin.is_empty() { 0.0 } else { search::dominance(&da, &db) };
+        // An empty basin (no correction) gives no distortions and a share of 0.
+        let share = search::dominance(&of(chosen), &of(b));
         candidates[b].dominance = share;
         if share >= SEEDED_DOMINANCE {
             chosen = b;
