@@ -22,7 +22,10 @@
 //! distortion of the result and of the truth on the search's samples at the used and the true
 //! ratio, their orientation, the chosen candidate and every candidate as [k, distortion,
 //! orientation, data misfit, corrected distortion, corrected orientation, kind (0 fit, 1
-//! corrected, 2 seeded), mean error of its sample map (as `direct`), dominance]. `DETECT=1`: no matching, the detection of every shape of the
+//! corrected, 2 seeded), mean error of its sample map (as `direct`), dominance], and `map_ratio`:
+//! the area ratio read off the result's and the truth's sample maps (`partial::ratio_of_map`).
+//! `SCALE_ONLY=1`: no matching, the heat-kernel ratio against the covered fraction (`CURVE=1`
+//! adds the energy on its coarse grid). `DETECT=1`: no matching, the detection of every shape of the
 //! pairs against the pair's other shape (for whole data sets: none should be detected).
 //!
 //! Coverage truth: a vertex of Y is covered when its nearest template point of Y (Euclidean,
@@ -178,12 +181,18 @@ fn main() -> Result<()> {
             let true_ratio = covered_fraction(&covered_truth(ym, &tx, &ty), &y.basis.mass);
             let est = partial::part_heat_scale(x, y, (0.1, 1.2), Some(x.area / y.area));
             let secs = t.elapsed().as_secs_f64();
+            // CURVE=1: the coarse grid of E(r) (the energy landscape of the estimate).
+            let curve: Vec<String> = match (&est, std::env::var("CURVE").is_ok()) {
+                (Ok(e), true) => e.curve.iter().map(|(r, v)| format!("[{r:.4},{v:.4e}]")).collect(),
+                _ => Vec::new(),
+            };
             print(format!(
-                "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"area_ratio\":{:.4},\"true_ratio\":{true_ratio:.4},\"heat\":{:.4},\"energy\":{:.5},\"e0\":{:.5},\"seconds\":{secs:.2}}}",
+                "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"area_ratio\":{:.4},\"true_ratio\":{true_ratio:.4},\"heat\":{:.4},\"energy\":{:.5},\"e0\":{:.5},\"seconds\":{secs:.2},\"curve\":[{}]}}",
                 x.area / y.area,
                 est.as_ref().map_or(f64::NAN, |e| e.ratio),
                 est.as_ref().map_or(f64::NAN, |e| e.energy),
                 est.as_ref().ok().and_then(|e| e.prior_energy).unwrap_or(f64::NAN),
+                curve.join(",")
             ));
             return;
         }
@@ -293,13 +302,15 @@ fn main() -> Result<()> {
                             .collect()
                     });
                     format!(
-                        ",\"diag\":{{\"used\":[{:.4},{:.4}],\"true\":[{:.4},{:.4}],\"orient\":[{:.3},{:.3}],\"chosen\":{},\"cands\":[{}]}}",
+                        ",\"diag\":{{\"used\":[{:.4},{:.4}],\"true\":[{:.4},{:.4}],\"orient\":[{:.3},{:.3}],\"map_ratio\":[{:.4},{:.4}],\"chosen\":{},\"cands\":[{}]}}",
                         dist(&su, &sy, &images),
                         dist(&su, &sy, &true_images),
                         dist(&st, &sy, &images),
                         dist(&st, &sy, &true_images),
                         or(&images),
                         or(&true_images),
+                        matching::partial::ratio_of_map(&sx, &sy, &images).unwrap_or(f64::NAN),
+                        matching::partial::ratio_of_map(&sx, &sy, &true_images).unwrap_or(f64::NAN),
                         r.candidates.as_ref().map_or(0, |(_, i)| *i),
                         cands.join(",")
                     )

@@ -31,6 +31,17 @@
 //! ratio errs high where the cut is long (more than the discarded quarter of the samples lie
 //! near it). Given each sample's distance d to X's boundary (unit area), X's profiles are
 //! corrected by that first-order term: p_X(x; r)_j − log(1 + e^{−d² r / t_j}).
+//!
+//! **Several minima.** E can have two nearly equal minima: a human's legs and pelvis, at
+//! half their area, look to the heat kernel like the arms and shoulders (faust_r_partial
+//! tr_reg_021_cut → 042: minima at r = 0.35 and 0.71, E 1.07 : 1.25 on the coarse grid, true
+//! covered fraction 0.71). Intrinsic quantities cannot tell the two apart (the geodesic
+//! distortion of the maps found at either ratio is the same, 0.074 against 0.073), the units
+//! can. So when the caller gives a prior ratio (the inputs' area ratio), the local minima of E
+//! on the coarse grid within [`TIE`] (30 %) of the least are taken as equally good and the
+//! one nearest the prior in log r is refined; without a prior, the least. Over faust_r_partial's
+//! 97 pairs this leaves the ratio of 8 pairs more than 15 % off the covered fraction, against
+//! 11 for the least E; tosca_r_partial's 109 none either way (EXPERIMENTS.md).
 
 use kiddo::ImmutableKdTree;
 use rayon::prelude::*;
@@ -49,6 +60,9 @@ const FIRST_TIME: f64 = 4.0;
 /// The share of X's samples whose misfits count (the better ones: the rest lie near X's cut
 /// or have no partner on Y).
 const KEPT: f64 = 0.75;
+/// Local minima of E within this share of the least are taken as equally good, and the prior
+/// ratio, when there is one, chooses among them (module docs, "Several minima").
+const TIE: f64 = 0.3;
 /// Grid of log r: coarse steps, then fine steps around the coarse minimum.
 const COARSE_STEP: f64 = 0.04;
 const FINE_STEP: f64 = 0.005;
@@ -64,6 +78,10 @@ pub struct HeatScale {
     pub times: Vec<f64>,
     /// E at the prior ratio given to [`heat_scale_ratio`] (None without one).
     pub prior_energy: Option<f64>,
+    /// E on the coarse grid of the search: (r, E(r)) in increasing r, log-spaced by
+    /// `COARSE_STEP` (the landscape: a part that looks like a smaller piece of Y, arms for legs,
+    /// gives a second minimum).
+    pub curve: Vec<(f64, f64)>,
 }
 
 /// log u(v, t_j) of `basis` at the vertices `rows`, the times `times` multiplied by `factor`:
@@ -99,13 +117,33 @@ fn profile_variance(p: &[[f64; TIMES]]) -> f64 {
         .sum()
 }
 
+/// Among the local minima of E on the coarse grid `curve` ((r, E) in increasing r) whose E is
+/// within [`TIE`] of the least, the one nearest the prior ratio `prior` in log r (module docs,
+/// "Several minima").
+fn nearest_minimum(curve: &[(f64, f64)], prior: f64) -> (f64, f64) {
+    let least = curve.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
+    let is_minimum = |i: usize| {
+        let e = curve[i].1;
+        // No neighbour lower (a NaN neighbour is not).
+        let lower = |j: usize| curve[j].1.partial_cmp(&e) == Some(std::cmp::Ordering::Less);
+        (i == 0 || !lower(i - 1)) && (i + 1 == curve.len() || !lower(i + 1))
+    };
+    (0..curve.len())
+        .filter(|&i| is_minimum(i) && curve[i].1 <= (1.0 + TIE) * least)
+        .map(|i| curve[i])
+        .min_by(|a, b| (a.0 / prior).ln().abs().total_cmp(&(b.0 / prior).ln().abs()))
+        .unwrap_or_else(|| curve.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1)).unwrap_or((f64::NAN, f64::NAN)))
+}
+
 /// The area ratio r of a part X to a whole Y (module docs) from their unit-area bases: X's
 /// samples `xs` (vertex ids of X, the rows whose profiles are matched) against every vertex of
 /// Y, r searched in lo ..= hi (dimensionless, 0 < lo < hi). Errors: bases with fewer than 2
 /// eigenpairs or a non-positive largest eigenvalue, no samples, a sample out of range, a bad
 /// range, boundary distances of another length or negative or NaN. `boundary`: the geodesic
 /// distance of every sample to X's boundary at X's unit area (module docs, "Near X's cut"; ∞
-/// for a sample that reaches no boundary; None for a shape without one).
+/// for a sample that reaches no boundary; None for a shape without one). `prior`: a ratio
+/// that breaks ties between near-equal minima (module docs, "Several minima"; its E is
+/// [`HeatScale::prior_energy`]); None: the least E.
 pub fn heat_scale_ratio(
     x: &Basis,
     y: &Basis,
@@ -165,17 +203,25 @@ pub fn heat_scale_ratio(
         let count = ((b.ln() - a.ln()) / step).ceil().max(0.0) as usize;
         (0..=count).map(|i| (a.ln() + step * i as f64).exp().min(b)).collect()
     };
-    let best = |rs: Vec<f64>| -> (f64, f64) {
-        rs.into_iter().map(|r| (r, energy(r))).min_by(|a, b| a.1.total_cmp(&b.1)).expect("a non-empty grid")
+    let best = |rs: &[(f64, f64)]| -> (f64, f64) {
+        rs.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1)).expect("a non-empty grid")
     };
-    let (coarse, _) = best(grid(lo, hi, COARSE_STEP));
-    let (ratio, e) =
-        best(grid((coarse * (-COARSE_STEP).exp()).max(lo), (coarse * COARSE_STEP.exp()).min(hi), FINE_STEP));
+    let curve: Vec<(f64, f64)> = grid(lo, hi, COARSE_STEP).into_iter().map(|r| (r, energy(r))).collect();
+    let (coarse, _) = match prior {
+        Some(p) => nearest_minimum(&curve, p),
+        None => best(&curve),
+    };
+    let fine: Vec<(f64, f64)> =
+        grid((coarse * (-COARSE_STEP).exp()).max(lo), (coarse * COARSE_STEP.exp()).min(hi), FINE_STEP)
+            .into_iter()
+            .map(|r| (r, energy(r)))
+            .collect();
+    let (ratio, e) = best(&fine);
     if !e.is_finite() {
         return Err(Error::invalid("bases", "the heat profiles are not finite"));
     }
     let prior_energy = prior.map(energy);
-    Ok(HeatScale { ratio, energy: e, times: times.to_vec(), prior_energy })
+    Ok(HeatScale { ratio, energy: e, times: times.to_vec(), prior_energy, curve })
 }
 
 #[cfg(test)]
@@ -208,6 +254,22 @@ mod tests {
         // A ratio far from 1 fits worse.
         let far = heat_scale_ratio(&b, &b, &xs, None, (0.1, 1.2), Some(0.3)).unwrap();
         assert!(far.prior_energy.unwrap() > 2.0 * h.energy.max(1e-6), "{far:?}");
+    }
+
+    /// Of near-equal minima the prior picks the nearest; a minimum above the tie, or a point
+    /// on a slope, is never picked.
+    #[test]
+    fn the_prior_chooses_among_near_equal_minima() {
+        let curve = [(0.3, 1.4), (0.35, 1.0), (0.4, 1.3), (0.6, 1.5), (0.7, 1.2), (0.8, 1.6), (0.9, 1.35), (1.0, 1.5)];
+        assert_eq!(nearest_minimum(&curve, 0.67), (0.7, 1.2));
+        assert_eq!(nearest_minimum(&curve, 0.2), (0.35, 1.0));
+        // Nearest in log r: 0.45 is nearer 0.35 (by 0.25), 0.52 nearer 0.7 (by 0.30 against 0.40).
+        assert_eq!(nearest_minimum(&curve, 0.45), (0.35, 1.0));
+        assert_eq!(nearest_minimum(&curve, 0.52), (0.7, 1.2));
+        // 0.9 is a minimum 35 % above the least: not a tie.
+        assert_eq!(nearest_minimum(&curve, 0.95), (0.7, 1.2));
+        // The least is always a candidate; NaN energies are never picked.
+        assert_eq!(nearest_minimum(&[(0.5, f64::NAN), (0.6, 2.0), (0.7, 3.0)], 0.5), (0.6, 2.0));
     }
 
     #[test]

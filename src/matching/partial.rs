@@ -16,11 +16,13 @@
 //!    height do not (FAUST's poses differ in area by up to 1.9×), nor a part in millimetres
 //!    and a whole in metres. By default ([`PartialScale::Heat`]) r is found without units from
 //!    the heat kernels ([`super::heat_scale`]: X's log-time heat profiles shifted by log r
-//!    against Y's), and area(X) / area(Y) is kept when the profiles fit it within
-//!    [`HEAT_PRIOR_TOLERANCE`] of the best r ([`part_heat_scale`]: X's profiles corrected for the
-//!    reflection of heat at its cut). On faust_r_partial the ratio so found is off the covered
-//!    fraction by 3.9 % (median; 11 of 97 pairs by more than 15 %, the worst 52 %) against 8.7 %
-//!    (35 pairs) for the area ratio; on tosca_r_partial (shared scale) 3.1 % (none above 15 %)
+//!    against Y's, [`part_heat_scale`]: X's profiles corrected for the reflection of heat at
+//!    its cut). Their energy can have two near-equal minima (a body's legs and pelvis at half
+//!    their area look like its arms and shoulders): area(X) / area(Y) chooses among the minima
+//!    within 30 % of the least, and is itself kept when the profiles fit it within
+//!    [`HEAT_PRIOR_TOLERANCE`] of the chosen minimum. On faust_r_partial the ratio so found is
+//!    off the covered fraction by more than 15 % on 8 of 97 pairs (11 with the least energy
+//!    alone, 35 with the area ratio); on tosca_r_partial (shared scale) on none
 //!    (EXPERIMENTS.md). The data ([`pair_wks`]) are then computed again at r. The older
 //!    estimate from sample maps found by geodesic distances alone ([`estimate_ratio()`],
 //!    [`PartialScale::Distances`]) errs low on many pairs.
@@ -190,8 +192,9 @@ impl Default for PartialOptions {
 pub enum PartialScale {
     /// area(X) / area(Y) in the inputs' units: right only when the two share a scale.
     Area,
-    /// From the heat kernels, without units ([`super::heat_scale`]); area(X) / area(Y) is kept
-    /// when it fits the heat profiles within [`HEAT_PRIOR_TOLERANCE`] of the best ratio.
+    /// From the heat kernels, without units ([`super::heat_scale`]); area(X) / area(Y) chooses
+    /// among near-equal minima of the heat-profile energy, and is kept when it fits the heat
+    /// profiles within [`HEAT_PRIOR_TOLERANCE`] of the chosen minimum.
     #[default]
     Heat,
     /// From sample maps found by geodesic distances alone ([`estimate_ratio()`]), replacing
@@ -739,7 +742,7 @@ pub fn partial_pipeline(
 /// d_Y(π(s_i), π(s_j)) / d_X(s_i, s_j))², X's distances at unit area (`sx`), over the pairs
 /// whose images lie farther apart than four covering radii of Y's anchors (`sy`), at most 1;
 /// None without such pairs. `images` are vertex ids of Y.
-fn ratio_of_map(sx: &SampleDistances, sy: &SampleDistances, images: &[usize]) -> Option<f64> {
+pub fn ratio_of_map(sx: &SampleDistances, sy: &SampleDistances, images: &[usize]) -> Option<f64> {
     let anchors: Vec<usize> = images.iter().map(|&v| sy.nearest[v] as usize).collect();
     let floor = 4.0 * sy.radius;
     let mut ratios = Vec::new();
