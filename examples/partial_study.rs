@@ -15,7 +15,8 @@
 //! challengers of the spectral choice (default 4; 0: none); `METRIC_ANCHORS=a` the anchors of the metric polish (default 128; 0: off);
 //! `SCALE=area|distances` the area ratio as it is or estimated from distance-only maps
 //! (default: from the heat kernels, `PartialScale::Heat`);
-//! `KBASIS=k` the eigenpairs per shape (default 200);
+//! `RATIO=truth` the true covered fraction given as the area ratio (`PartialOptions::ratio`,
+//! `--partial-ratio`: what a user who knows it gets); `KBASIS=k` the eigenpairs per shape (default 200);
 //! `CLOUD=x` the parts as point clouds of their vertices. `UNITS=1` every shape in its own unit
 //! (×10^u, u ∈ [−3, 3] from a hash of its name). `STRIDE=s` every s-th pair of the range;
 //! `ONLY=i,j,…` these pairs of pairs.txt (0-based) instead. `DIAG=1` adds `diag`: the
@@ -199,6 +200,10 @@ fn main() -> Result<()> {
         let run = || -> Result<matching::MatchResult> {
             let det = partial::detect(x, y, &opts.partial);
             let mut opts = opts.clone();
+            if std::env::var("RATIO").is_ok_and(|v| v == "truth") {
+                // What a user who knows the covered fraction gets (`--partial-ratio`).
+                opts.partial.ratio = Some(covered_fraction(&covered_truth(ym, &tx, &ty), &y.basis.mass));
+            }
             let (f, g) = if det.partial {
                 opts.partial.wks = Some(WksRecipe::default());
                 partial::pair_wks(x, y, &WksRecipe::default())?

@@ -277,6 +277,48 @@ fn a_part_in_other_units_gets_its_area_ratio_from_the_heat_kernels() {
     assert!(same >= 0.99, "the two scales' maps agree on {same:.3}");
 }
 
+/// A ratio the user knows (`PartialOptions::ratio`, `--partial-ratio`) replaces step 0's
+/// estimate exactly, in any units, and gives the same placement; through the options by name it
+/// implies the partial path, and bad values are errors naming it.
+#[test]
+fn a_known_area_ratio_replaces_the_estimate() {
+    use funcorr::matching::options::{MatchSettings, Value};
+    let whole = mesh("tr_reg_000.off");
+    let (part, orig) = cut(&whole, [0.3, -0.9, 0.3], 0.7);
+    let y = prepare(whole);
+    let truth = prepare(part.clone()).area / y.area;
+    // In millimetres against metres: the inputs' area ratio is 10⁶ off.
+    let x = prepare(
+        TriMesh::new(part.vertices().iter().map(|p| p.map(|c| c * 1e3)).collect(), part.faces().to_vec()).unwrap(),
+    );
+    let mut s = MatchSettings::default();
+    s.set("partial_ratio", Value::Number(truth)).unwrap();
+    let mut opts = s.resolve(true).unwrap();
+    assert_eq!(opts.partial.mode, PartialMode::Always);
+    assert_eq!(opts.partial.ratio, Some(truth));
+    opts.partial.wks = Some(WksRecipe::default());
+    let (f, g) = pair_wks(&x, &y, &WksRecipe::default()).unwrap();
+    let r = run(&x, &y, &f, &g, &opts).unwrap();
+    assert_eq!(r.partial.as_ref().unwrap().used_ratio, Some(truth));
+    let e = distances_to_truth(&y, &r.map_xy, &orig);
+    let (median, p95) = (e[e.len() / 2], e[e.len() * 95 / 100]);
+    eprintln!("given ratio {truth:.3}: distance to the truth in mean edge lengths: median {median:.2}, 95 % {p95:.2}");
+    assert!(median <= 1.5 && p95 <= 4.0, "median {median:.2}, 95 % {p95:.2}");
+    let e = MatchSettings::default().set("partial_ratio", Value::Number(f64::NAN)).unwrap_err().to_string();
+    assert!(e.contains("partial_ratio"), "{e}");
+    for bad in [0.0, -0.5, 1.6] {
+        let mut s = MatchSettings::default();
+        s.set("partial_ratio", Value::Number(bad)).unwrap();
+        let e = s.resolve(true).unwrap_err().to_string();
+        assert!(e.contains("partial_ratio") && e.contains("(0, 1.5]"), "{bad}: {e}");
+    }
+    let mut s = MatchSettings::default();
+    s.set("partial_ratio", Value::Number(0.7)).unwrap();
+    s.set("partial", Value::Flag(false)).unwrap();
+    let e = s.resolve(true).unwrap_err().to_string();
+    assert!(e.contains("partial_ratio") && e.contains("partial=false"), "{e}");
+}
+
 /// Where the descriptors mislead (Y's WKS rows scrambled by a fixed permutation), the spectral
 /// fits of the cut copy land anywhere; the seeded maps found from distances (module docs of
 /// `partial`, step 3) challenge that choice and, fitting far more of the samples better,

@@ -444,6 +444,12 @@ pub(crate) struct PipelineArgs {
     #[arg(long)]
     #[serde(skip)]
     pub(crate) no_partial: bool,
+    /// The share of Y's area that X covers, in (0, 1.5], when you know it (e.g. 0.7 for a body
+    /// without its head and an arm): the partial path uses it instead of its estimate from the
+    /// heat kernels, which can fit two ratios about as well (legs and pelvis at half their area
+    /// look like arms and shoulders). Implies --partial.
+    #[arg(long, conflicts_with = "no_partial")]
+    pub(crate) partial_ratio: Option<Finite>,
     /// Vertex pairs n·m above which the axiomatic method's final point maps are searched near
     /// the map of its samples instead of exactly (large shapes).
     #[arg(long, default_value_t = defaults().axiomatic.near.above_pairs, value_parser = vertex_pairs)]

@@ -473,7 +473,9 @@ def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str
     ``xi_stages``, ``multiscale``, ``near_above``, ``near_cells``, ``near_inverse_above``, ``near_certified_up_to``,
     ``near_inverse_certified_up_to``;
     ``partial`` (True: ``--partial``, X is a part of Y; False: ``--no-partial``; None, the
-    default: detected); the Laplacian options of
+    default: detected); ``partial_ratio`` (the share of Y's area that the part X covers, in
+    (0, 1.5], when known; implies ``partial=True``; default: estimated from the heat kernels);
+    the Laplacian options of
     :func:`prepare`; ``seg_function``, ``threshold``, ``hks_time``; ``cache_dir``. An unknown
     keyword raises TypeError; a bad value ValueError naming it.
 

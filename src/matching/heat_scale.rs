@@ -38,7 +38,7 @@
 //! covered fraction 0.71). Intrinsic quantities cannot tell the two apart (the geodesic
 //! distortion of the maps found at either ratio is the same, 0.074 against 0.073), the units
 //! can. So when the caller gives a prior ratio (the inputs' area ratio), the local minima of E
-//! on the coarse grid within [`TIE`] (30 %) of the least are taken as equally good and the
+//! on the coarse grid within `TIE` (30 %) of the least are taken as equally good and the
 //! one nearest the prior in log r is refined; without a prior, the least. Over faust_r_partial's
 //! 97 pairs this leaves the ratio of 8 pairs more than 15 % off the covered fraction, against
 //! 11 for the least E; tosca_r_partial's 109 none either way (EXPERIMENTS.md).
@@ -118,7 +118,7 @@ fn profile_variance(p: &[[f64; TIMES]]) -> f64 {
 }
 
 /// Among the local minima of E on the coarse grid `curve` ((r, E) in increasing r) whose E is
-/// within [`TIE`] of the least, the one nearest the prior ratio `prior` in log r (module docs,
+/// within `TIE` of the least, the one nearest the prior ratio `prior` in log r (module docs,
 /// "Several minima").
 fn nearest_minimum(curve: &[(f64, f64)], prior: f64) -> (f64, f64) {
     let least = curve.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);

@@ -360,6 +360,9 @@ match_settings! {
     /// X is a part of Y: true matches it with the partial path ([`super::partial`]), false as a
     /// whole shape; unset, the axiomatic method detects a part ([`super::partial::detect`]).
     partial: bool,
+    /// The share of Y's area that a part X covers, in (0, 1.5], when known (unset: estimated
+    /// from the heat kernels, [`super::partial`] step 0); implies the partial path.
+    partial_ratio: f64,
     /// Which maps the axiomatic method looks for (default preserve).
     orientation: Orientation,
     /// Signed descriptors of the axiomatic method.
@@ -645,11 +648,12 @@ impl MatchSettings {
             zoomout_step: self.zoomout_step.unwrap_or(base.zoomout_step),
             axiomatic: a,
             partial: PartialOptions {
-                mode: match self.partial {
-                    Some(true) => PartialMode::Always,
-                    Some(false) => PartialMode::Never,
-                    None => base.partial.mode,
+                mode: match (self.partial, self.partial_ratio) {
+                    (Some(true), _) | (None, Some(_)) => PartialMode::Always,
+                    (Some(false), _) => PartialMode::Never,
+                    (None, None) => base.partial.mode,
                 },
+                ratio: self.partial_ratio.or(base.partial.ratio),
                 ..base.partial
             },
             ..base
@@ -890,6 +894,21 @@ impl MatchOptions {
                 sp.name("partial"),
                 "partial matching is a path of the axiomatic method (the default); other methods match whole shapes",
             ));
+        }
+        if let Some(r) = self.partial.ratio {
+            let most = self.partial.max_area_ratio;
+            if !(r.is_finite() && r > 0.0 && r <= most) {
+                return Err(Error::invalid(
+                    sp.name("partial_ratio"),
+                    format!("the share of Y's area a part covers must be in (0, {most}], got {r}"),
+                ));
+            }
+            if self.partial.mode == PartialMode::Never {
+                return Err(Error::invalid(
+                    sp.name("partial_ratio"),
+                    format!("says X is a part of Y, but {} says it is whole", sp.given("partial", &false)),
+                ));
+            }
         }
         let a = &self.axiomatic;
         if a.near.cells == 0 {

@@ -23,7 +23,8 @@
 //!    [`HEAT_PRIOR_TOLERANCE`] of the chosen minimum. On faust_r_partial the ratio so found is
 //!    off the covered fraction by more than 15 % on 8 of 97 pairs (11 with the least energy
 //!    alone, 35 with the area ratio); on tosca_r_partial (shared scale) on none
-//!    (EXPERIMENTS.md). The data ([`pair_wks`]) are then computed again at r. The older
+//!    (EXPERIMENTS.md). A ratio the user knows ([`PartialOptions::ratio`], `--partial-ratio`)
+//!    replaces the estimate. The data ([`pair_wks`]) are then computed again at r. The older
 //!    estimate from sample maps found by geodesic distances alone ([`estimate_ratio()`],
 //!    [`PartialScale::Distances`]) errs low on many pairs.
 //! 1. **Data** in common units: the descriptors F, G are divided by the norms of G's columns on
@@ -149,6 +150,14 @@ pub struct PartialOptions {
     /// exceeds [`METRIC_MAX_ENTRIES`]).
     #[serde(default = "metric_anchors")]
     pub metric_anchors: usize,
+    /// The area ratio r when the user knows it: the share of Y's area that X covers
+    /// (dimensionless, in (0, `max_area_ratio`]); it replaces step 0's estimate ([`scale`]),
+    /// for the pairs whose heat profiles fit two ratios about as well (module docs, step 0).
+    /// None (default): estimated.
+    ///
+    /// [`scale`]: PartialOptions::scale
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ratio: Option<f64>,
 }
 
 /// [`PartialOptions::metric_anchors`] by default: 128 (on the cut copy of `tests/partial.rs`,
@@ -182,6 +191,7 @@ impl Default for PartialOptions {
             wks: None,
             scale: PartialScale::Heat,
             metric_anchors: METRIC_ANCHORS,
+            ratio: None,
         }
     }
 }
@@ -708,9 +718,10 @@ pub fn partial_pipeline(
     // r is estimated as `o.scale` says (module docs, step 0).
     let t = std::time::Instant::now();
     crate::progress::stage("area ratio")?;
-    let r = match o.scale {
-        PartialScale::Area => r0,
-        PartialScale::Distances => {
+    let r = match (o.ratio, o.scale) {
+        (Some(r), _) => r,
+        (None, PartialScale::Area) => r0,
+        (None, PartialScale::Distances) => {
             let guess = estimate_ratio(&sx, &sy, r0, p.search.rounds)?;
             if (guess / r0 - 1.0).abs() > 0.1 {
                 guess
@@ -718,7 +729,7 @@ pub fn partial_pipeline(
                 r0
             }
         }
-        PartialScale::Heat => {
+        (None, PartialScale::Heat) => {
             let prior = Some(r0).filter(|r| (HEAT_RANGE.0..=HEAT_RANGE.1).contains(r));
             let h = part_heat_scale(x, y, HEAT_RANGE, prior)?;
             match h.prior_energy {
