@@ -127,6 +127,9 @@ fn a_cut_copy_is_placed_on_its_whole_shape_with_its_coverage() {
     // The functional map is k_Y × k_X, k_X from twice the slope r k_Y (the final reading),
     // capped at the basis size; r is the area ratio (the shapes share their scale).
     assert_eq!(r.partial.as_ref().unwrap().used_ratio, Some(det.area_ratio));
+    // The report lists the ratios the heat profiles fit about equally well: here one, near r.
+    let minima = r.partial.as_ref().unwrap().heat_minima.clone().expect("estimated from the heat kernels");
+    assert!(minima.iter().any(|m| (m / det.area_ratio - 1.0).abs() < 0.1), "{minima:?} for {}", det.area_ratio);
     let (ky, kx) = (r.c.nrows(), r.c.ncols());
     let wide = ((2.0 * det.area_ratio * ky as f64).ceil() as usize).min(x.basis.k());
     assert!(ky == 128 && kx == wide, "C is {ky} × {kx}");
@@ -300,6 +303,7 @@ fn a_known_area_ratio_replaces_the_estimate() {
     let (f, g) = pair_wks(&x, &y, &WksRecipe::default()).unwrap();
     let r = run(&x, &y, &f, &g, &opts).unwrap();
     assert_eq!(r.partial.as_ref().unwrap().used_ratio, Some(truth));
+    assert_eq!(r.partial.as_ref().unwrap().heat_minima, None, "not estimated");
     let e = distances_to_truth(&y, &r.map_xy, &orig);
     let (median, p95) = (e[e.len() / 2], e[e.len() * 95 / 100]);
     eprintln!("given ratio {truth:.3}: distance to the truth in mean edge lengths: median {median:.2}, 95 % {p95:.2}");

@@ -82,6 +82,10 @@ pub struct HeatScale {
     /// `COARSE_STEP` (the landscape: a part that looks like a smaller piece of Y, arms for legs,
     /// gives a second minimum).
     pub curve: Vec<(f64, f64)>,
+    /// The ratios of the local minima of E on the coarse grid within `TIE` (30 %) of the least,
+    /// in increasing r: more than one, and the heat profiles cannot tell them apart (module
+    /// docs, "Several minima").
+    pub minima: Vec<f64>,
 }
 
 /// log u(v, t_j) of `basis` at the vertices `rows`, the times `times` multiplied by `factor`:
@@ -117,10 +121,10 @@ fn profile_variance(p: &[[f64; TIMES]]) -> f64 {
         .sum()
 }
 
-/// Among the local minima of E on the coarse grid `curve` ((r, E) in increasing r) whose E is
-/// within `TIE` of the least, the one nearest the prior ratio `prior` in log r (module docs,
-/// "Several minima").
-fn nearest_minimum(curve: &[(f64, f64)], prior: f64) -> (f64, f64) {
+/// The local minima of E on the coarse grid `curve` ((r, E) in increasing r) whose E is within
+/// `TIE` of the least, in increasing r (module docs, "Several minima"): the ratios the heat
+/// profiles fit about equally well.
+fn near_equal_minima(curve: &[(f64, f64)]) -> Vec<(f64, f64)> {
     let least = curve.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
     let is_minimum = |i: usize| {
         let e = curve[i].1;
@@ -128,9 +132,14 @@ fn nearest_minimum(curve: &[(f64, f64)], prior: f64) -> (f64, f64) {
         let lower = |j: usize| curve[j].1.partial_cmp(&e) == Some(std::cmp::Ordering::Less);
         (i == 0 || !lower(i - 1)) && (i + 1 == curve.len() || !lower(i + 1))
     };
-    (0..curve.len())
-        .filter(|&i| is_minimum(i) && curve[i].1 <= (1.0 + TIE) * least)
-        .map(|i| curve[i])
+    (0..curve.len()).filter(|&i| is_minimum(i) && curve[i].1 <= (1.0 + TIE) * least).map(|i| curve[i]).collect()
+}
+
+/// Of [`near_equal_minima`] of `curve`, the one nearest the prior ratio `prior` in log r (the
+/// least E when there is none).
+fn nearest_minimum(curve: &[(f64, f64)], prior: f64) -> (f64, f64) {
+    near_equal_minima(curve)
+        .into_iter()
         .min_by(|a, b| (a.0 / prior).ln().abs().total_cmp(&(b.0 / prior).ln().abs()))
         .unwrap_or_else(|| curve.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1)).unwrap_or((f64::NAN, f64::NAN)))
 }
@@ -221,7 +230,8 @@ pub fn heat_scale_ratio(
         return Err(Error::invalid("bases", "the heat profiles are not finite"));
     }
     let prior_energy = prior.map(energy);
-    Ok(HeatScale { ratio, energy: e, times: times.to_vec(), prior_energy, curve })
+    let minima = near_equal_minima(&curve).into_iter().map(|m| m.0).collect();
+    Ok(HeatScale { ratio, energy: e, times: times.to_vec(), prior_energy, curve, minima })
 }
 
 #[cfg(test)]
@@ -268,6 +278,7 @@ mod tests {
         assert_eq!(nearest_minimum(&curve, 0.52), (0.7, 1.2));
         // 0.9 is a minimum 35 % above the least: not a tie.
         assert_eq!(nearest_minimum(&curve, 0.95), (0.7, 1.2));
+        assert_eq!(near_equal_minima(&curve).iter().map(|m| m.0).collect::<Vec<_>>(), [0.35, 0.7]);
         // The least is always a candidate; NaN energies are never picked.
         assert_eq!(nearest_minimum(&[(0.5, f64::NAN), (0.6, 2.0), (0.7, 3.0)], 0.5), (0.6, 2.0));
     }

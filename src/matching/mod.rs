@@ -721,6 +721,7 @@ fn run_partial(
     }
     let r = partial::partial_pipeline(x, y, f, g, &opts.axiomatic, &opts.partial)?;
     detection.used_ratio = Some(r.area_ratio);
+    detection.heat_minima = Some(r.heat_minima.clone()).filter(|m| !m.is_empty());
     detection.metric_polish = r.polish;
     let mut stages = r.stages;
     let c = r.c_yx.transpose().to_owned();

@@ -243,6 +243,11 @@ pub struct Detection {
     pub partial: bool,
     /// The area ratio the partial path used ([`PartialResult::area_ratio`]; None before it ran).
     pub used_ratio: Option<f64>,
+    /// The ratios the heat profiles fit about equally well ([`PartialResult::heat_minima`]):
+    /// more than one, and a ratio the user knows decides (`--partial-ratio`). None when not
+    /// estimated from the heat kernels.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub heat_minima: Option<Vec<f64>>,
     /// What the metric polish of the final map did ([`PartialResult::polish`]; None before the
     /// partial path ran, with the polish off, or skipped for Y's size).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -376,7 +381,17 @@ pub fn detect(x: &PreparedShape, y: &PreparedShape, opts: &PartialOptions) -> De
             (small && open, reason)
         }
     };
-    Detection { area_ratio, heat_ratio, boundary_x, boundary_y, partial, used_ratio: None, metric_polish: None, reason }
+    Detection {
+        area_ratio,
+        heat_ratio,
+        boundary_x,
+        boundary_y,
+        partial,
+        used_ratio: None,
+        heat_minima: None,
+        metric_polish: None,
+        reason,
+    }
 }
 
 /// The WKS of both shapes at the same energies, for a part X of Y (module docs, step 1): the
@@ -534,6 +549,9 @@ pub struct PartialResult {
     /// The area ratio r the result was computed with: area(X) / area(Y) or its estimate
     /// ([`PartialOptions::scale`], module docs step 0).
     pub area_ratio: f64,
+    /// Step 0's near-equal minima of the heat-profile energy ([`super::heat_scale::HeatScale::minima`]):
+    /// empty when r was given or found otherwise.
+    pub heat_minima: Vec<f64>,
     /// What the metric polish did (module docs, step 5; None when it is off).
     pub polish: Option<refine::MetricPolished>,
 }
@@ -718,6 +736,7 @@ pub fn partial_pipeline(
     // r is estimated as `o.scale` says (module docs, step 0).
     let t = std::time::Instant::now();
     crate::progress::stage("area ratio")?;
+    let mut heat_minima = Vec::new();
     let r = match (o.ratio, o.scale) {
         (Some(r), _) => r,
         (None, PartialScale::Area) => r0,
@@ -732,6 +751,7 @@ pub fn partial_pipeline(
         (None, PartialScale::Heat) => {
             let prior = Some(r0).filter(|r| (HEAT_RANGE.0..=HEAT_RANGE.1).contains(r));
             let h = part_heat_scale(x, y, HEAT_RANGE, prior)?;
+            heat_minima.clone_from(&h.minima);
             match h.prior_energy {
                 Some(e0) if e0 <= (1.0 + HEAT_PRIOR_TOLERANCE) * h.energy => r0,
                 _ => h.ratio,
@@ -745,6 +765,7 @@ pub fn partial_pipeline(
     };
     let mut result = pass(x, y, &f1, &g1, p, o, &surfaces, (&sx, &sy), r)?;
     result.stages.insert(0, ("area ratio".to_string(), ratio_seconds));
+    result.heat_minima = heat_minima;
     result.stages.insert(0, ("search samples".to_string(), search_seconds));
     Ok(result)
 }
@@ -1095,7 +1116,19 @@ fn pass(
     crate::progress::stage("coverage")?;
     let coverage = coverage(y, &map_xy, r)?;
     stages.push(("coverage".to_string(), t.elapsed().as_secs_f64()));
-    Ok(PartialResult { map_xy, c_yx, c_fit, candidates, chosen, stages, coverage, correction, area_ratio: r, polish })
+    Ok(PartialResult {
+        map_xy,
+        c_yx,
+        c_fit,
+        candidates,
+        chosen,
+        stages,
+        coverage,
+        correction,
+        area_ratio: r,
+        heat_minima: Vec::new(),
+        polish,
+    })
 }
 
 /// X's side of the energy (computed on X at unit area) with its differential operators in Y's
