@@ -316,6 +316,11 @@ fn a_known_area_ratio_replaces_the_estimate() {
         let e = s.resolve(true).unwrap_err().to_string();
         assert!(e.contains("partial_ratio") && e.contains("(0, 1.5]"), "{bad}: {e}");
     }
+    // The library's options are checked by `run` as by the front ends.
+    let mut o = opts.clone();
+    o.partial.ratio = Some(f64::NAN);
+    let e = run(&x, &y, &f, &g, &o).unwrap_err().to_string();
+    assert!(e.contains("partial_ratio") && e.contains("NaN"), "{e}");
     let mut s = MatchSettings::default();
     s.set("partial_ratio", Value::Number(0.7)).unwrap();
     s.set("partial", Value::Flag(false)).unwrap();

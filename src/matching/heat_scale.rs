@@ -34,7 +34,7 @@
 //!
 //! **Several minima.** E can have two nearly equal minima: a human's legs and pelvis, at
 //! half their area, look to the heat kernel like the arms and shoulders (faust_r_partial
-//! tr_reg_021_cut → 042: minima at r = 0.35 and 0.71, E 1.07 : 1.25 on the coarse grid, true
+//! tr_reg_021_cut → 042: minima at r = 0.35 and 0.74, E 1.00 : 1.18 on the coarse grid, true
 //! covered fraction 0.71). Intrinsic quantities cannot tell the two apart (the geodesic
 //! distortion of the maps found at either ratio is the same, 0.074 against 0.073), the units
 //! can. So when the caller gives a prior ratio (the inputs' area ratio), the local minima of E

@@ -694,6 +694,12 @@ pub fn partial_pipeline(
     if p.candidates.is_empty() || p.candidates.contains(&0) {
         return Err(Error::invalid("candidates", "need at least one functional-map size ≥ 1"));
     }
+    if let Some(r) = o.ratio.filter(|r| !(r.is_finite() && *r > 0.0 && *r <= o.max_area_ratio)) {
+        return Err(Error::invalid(
+            "partial ratio",
+            format!("the share of Y's area a part covers must be in (0, {}], got {r}", o.max_area_ratio),
+        ));
+    }
     if !(o.slope.is_finite() && o.slope > 0.0) {
         return Err(Error::invalid("partial slope", format!("must be finite and > 0, got {}", o.slope)));
     }
