@@ -91,7 +91,7 @@ use std::time::Instant;
 use funcorr::benchmark::Dataset;
 use funcorr::descriptors::{signatures as sig, Descriptors};
 use funcorr::fmap::energy::{Mask, Orientation};
-use funcorr::geodesic::ExactGeodesics;
+use funcorr::geodesic::{ExactGeodesics, GraphGeodesics};
 use funcorr::matching::{self, MatchOptions, Method};
 use funcorr::prepared::{LaplacianChoice, PreparedShape};
 use funcorr::shape::{PointSet, Shape, TriMesh};
@@ -544,19 +544,34 @@ fn main() -> Result<()> {
         };
         for v in &variants {
             let t = Instant::now();
+            // Ground-truth landmarks, moved to the cloud points of the vertices.
+            let lm_pairs: Vec<(usize, usize)> = if v.lm > 0 {
+                let to_x = |i: usize| x.vertex_to_point.as_ref().map_or(i, |p| p[i]);
+                let to_y = |j: usize| y.vertex_to_point.as_ref().map_or(j, |p| p[j]);
+                pick_landmarks(&x.mesh, &gt.x, &gt.y, v.lm, v.lm_seed).into_iter().map(|(i, j)| (to_x(i), to_y(j))).collect()
+            } else {
+                Vec::new()
+            };
             let run = || -> Result<matching::MatchResult> {
                 let (f, g) = (wks(&x.prepared, v)?, wks(&y.prepared, v)?);
                 let mut opts = v.opts.clone();
-                if v.lm > 0 {
-                    // Ground-truth landmarks, moved to the cloud points of the vertices.
-                    let to_x = |i: usize| x.vertex_to_point.as_ref().map_or(i, |p| p[i]);
-                    let to_y = |j: usize| y.vertex_to_point.as_ref().map_or(j, |p| p[j]);
-                    opts.axiomatic.landmarks.pairs = pick_landmarks(&x.mesh, &gt.x, &gt.y, v.lm, v.lm_seed)
-                        .into_iter()
-                        .map(|(i, j)| (to_x(i), to_y(j)))
-                        .collect();
-                }
+                opts.axiomatic.landmarks.pairs = lm_pairs.clone();
                 matching::run(&x.prepared, &y.prepared, &f, &g, &opts)
+            };
+            // LMRES=1: the map's landmark-distance residual, mean over X's vertices and the
+            // landmarks of |d_X(x, a_l) − d_Y(π(x), b_l)| (edge-graph geodesics, unit area).
+            let lm_residual = |map: &[usize]| -> Option<f64> {
+                if lm_pairs.is_empty() || std::env::var("LMRES").is_err() {
+                    return None;
+                }
+                let (tx, ty) = (x.prepared.triangles()?, y.prepared.triangles()?);
+                let (gx, gy) = (GraphGeodesics::mesh_edges(tx).ok()?, GraphGeodesics::mesh_edges(ty).ok()?);
+                let mut sum = 0.0;
+                for &(a, b) in &lm_pairs {
+                    let (dx, dy) = (gx.distances_from_vertex(a).ok()?, gy.distances_from_vertex(b).ok()?);
+                    sum += (0..map.len()).map(|i| (dx[i] - dy[map[i]]).abs()).sum::<f64>() / map.len() as f64;
+                }
+                Some(sum / lm_pairs.len() as f64)
             };
             let line = match run() {
                 Ok(r) => {
@@ -593,6 +608,9 @@ fn main() -> Result<()> {
                     let mut extra = String::new();
                     if v.lm > 0 {
                         extra += &format!(",\"landmarks\":{},\"lmseed\":{}", v.lm, v.lm_seed);
+                    }
+                    if let Some(res) = lm_residual(&r.map_xy) {
+                        extra += &format!(",\"lmres\":{res:.5}");
                     }
                     if !perturb.is_empty() {
                         extra += &format!(",\"perturb\":\"{perturb}\"");

@@ -22,7 +22,17 @@
 //! 3. **Refinement.** The landmarks are samples of every ZoomOut (probes and final) and of the
 //!    polish, with `pin_weight` times the mean sample weight, and pinned there: a_l is matched to
 //!    b_l in every point-map step ([`crate::refine::zoomout_pinned`],
-//!    [`crate::refine::bijective_polish_pinned`]), and in the final maps X → Y and Y → X.
+//!    [`crate::refine::bijective_polish_pinned`]), and in the final maps X → Y and Y → X. On
+//!    shapes that are not isometric the final ZoomOut, fitted to ever finer eigenfunctions that
+//!    no longer correspond, can drift from the landmarks' frame; so the functional map it starts
+//!    from (the chosen candidate's probe result) and the one it ends with are compared by how
+//!    well their maps of 500 samples of X repeat the distances to the landmarks
+//!    (`LandmarkData::distance_residual`, which sees the whole map, not only the pins): the
+//!    start is polished instead of the end when it is better by 10 % or more (up to
+//!    `near.above_pairs` vertex pairs, where the maps are searched exactly). On
+//!    tosca_nonisometric_r with 5 landmarks, seeds 0–2: 7.05 / 11.80 / 8.83 → 7.05 / 7.50 / 8.83;
+//!    3 landmarks 12.06 / 11.60 / 11.17 → 7.57 / 7.49 / 9.57; 10 unchanged; faust_r unchanged
+//!    (EXPERIMENTS.md, "The landmarks judge the final ZoomOut").
 //!
 //! Without landmarks (`pairs` empty) none of this runs and the pipeline is unchanged, bit for bit.
 
@@ -186,6 +196,29 @@ impl LandmarkData {
     /// vertex of Y of a_l): mean_l d_Y(images[l], b_l), unit area (unreachable: ∞).
     pub fn error(&self, images: &[usize]) -> f64 {
         images.iter().enumerate().map(|(l, &j)| self.dist_y[(j, l)]).sum::<f64>() / self.len().max(1) as f64
+    }
+
+    /// The landmark-distance residual of a map of samples of X (`samples`, vertex ids of X, and
+    /// their `images` on Y): mean over the samples s and the landmarks l of
+    /// |d_X(s, a_l) − d_Y(π(s), b_l)| (unit area; pairs unreachable on either shape skipped; ∞
+    /// when none is left). How well a whole map, not only its pins, repeats the distances to
+    /// the landmarks ([module docs](self), 3.).
+    pub fn distance_residual(&self, samples: &[usize], images: &[usize]) -> f64 {
+        let (mut sum, mut count) = (0.0, 0usize);
+        for (&s, &j) in samples.iter().zip(images) {
+            for l in 0..self.len() {
+                let (p, q) = (self.dist_x[(s, l)], self.dist_y[(j, l)]);
+                if p.is_finite() && q.is_finite() {
+                    sum += (p - q).abs();
+                    count += 1;
+                }
+            }
+        }
+        if count == 0 {
+            f64::INFINITY
+        } else {
+            sum / count as f64
+        }
     }
 
     /// The trilateration costs (s × a) between the search samples of X (`sx`) and the anchors of
