@@ -135,11 +135,12 @@ fn near_equal_minima(curve: &[(f64, f64)]) -> Vec<(f64, f64)> {
     (0..curve.len()).filter(|&i| is_minimum(i) && curve[i].1 <= (1.0 + TIE) * least).map(|i| curve[i]).collect()
 }
 
-/// Of [`near_equal_minima`] of `curve`, the one nearest the prior ratio `prior` in log r (the
-/// least E when there is none).
-fn nearest_minimum(curve: &[(f64, f64)], prior: f64) -> (f64, f64) {
-    near_equal_minima(curve)
-        .into_iter()
+/// Of the near-equal `minima` of `curve` ([`near_equal_minima`]), the one nearest the prior
+/// ratio `prior` in log r (the least E of `curve` when there is none).
+fn nearest_minimum(curve: &[(f64, f64)], minima: &[(f64, f64)], prior: f64) -> (f64, f64) {
+    minima
+        .iter()
+        .copied()
         .min_by(|a, b| (a.0 / prior).ln().abs().total_cmp(&(b.0 / prior).ln().abs()))
         .unwrap_or_else(|| curve.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1)).unwrap_or((f64::NAN, f64::NAN)))
 }
@@ -216,8 +217,9 @@ pub fn heat_scale_ratio(
         rs.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1)).expect("a non-empty grid")
     };
     let curve: Vec<(f64, f64)> = grid(lo, hi, COARSE_STEP).into_iter().map(|r| (r, energy(r))).collect();
+    let minima = near_equal_minima(&curve);
     let (coarse, _) = match prior {
-        Some(p) => nearest_minimum(&curve, p),
+        Some(p) => nearest_minimum(&curve, &minima, p),
         None => best(&curve),
     };
     let fine: Vec<(f64, f64)> =
@@ -230,7 +232,7 @@ pub fn heat_scale_ratio(
         return Err(Error::invalid("bases", "the heat profiles are not finite"));
     }
     let prior_energy = prior.map(energy);
-    let minima = near_equal_minima(&curve).into_iter().map(|m| m.0).collect();
+    let minima = minima.into_iter().map(|m| m.0).collect();
     Ok(HeatScale { ratio, energy: e, times: times.to_vec(), prior_energy, curve, minima })
 }
 
@@ -271,16 +273,17 @@ mod tests {
     #[test]
     fn the_prior_chooses_among_near_equal_minima() {
         let curve = [(0.3, 1.4), (0.35, 1.0), (0.4, 1.3), (0.6, 1.5), (0.7, 1.2), (0.8, 1.6), (0.9, 1.35), (1.0, 1.5)];
-        assert_eq!(nearest_minimum(&curve, 0.67), (0.7, 1.2));
-        assert_eq!(nearest_minimum(&curve, 0.2), (0.35, 1.0));
+        assert_eq!(nearest_minimum(&curve, &near_equal_minima(&curve), 0.67), (0.7, 1.2));
+        assert_eq!(nearest_minimum(&curve, &near_equal_minima(&curve), 0.2), (0.35, 1.0));
         // Nearest in log r: 0.45 is nearer 0.35 (by 0.25), 0.52 nearer 0.7 (by 0.30 against 0.40).
-        assert_eq!(nearest_minimum(&curve, 0.45), (0.35, 1.0));
-        assert_eq!(nearest_minimum(&curve, 0.52), (0.7, 1.2));
+        assert_eq!(nearest_minimum(&curve, &near_equal_minima(&curve), 0.45), (0.35, 1.0));
+        assert_eq!(nearest_minimum(&curve, &near_equal_minima(&curve), 0.52), (0.7, 1.2));
         // 0.9 is a minimum 35 % above the least: not a tie.
-        assert_eq!(nearest_minimum(&curve, 0.95), (0.7, 1.2));
+        assert_eq!(nearest_minimum(&curve, &near_equal_minima(&curve), 0.95), (0.7, 1.2));
         assert_eq!(near_equal_minima(&curve).iter().map(|m| m.0).collect::<Vec<_>>(), [0.35, 0.7]);
         // The least is always a candidate; NaN energies are never picked.
-        assert_eq!(nearest_minimum(&[(0.5, f64::NAN), (0.6, 2.0), (0.7, 3.0)], 0.5), (0.6, 2.0));
+        let odd = [(0.5, f64::NAN), (0.6, 2.0), (0.7, 3.0)];
+        assert_eq!(nearest_minimum(&odd, &near_equal_minima(&odd), 0.5), (0.6, 2.0));
     }
 
     #[test]

@@ -45,7 +45,7 @@ use crate::geodesic::GraphGeodesics;
 use crate::prepared::PreparedShape;
 use crate::spatial::Samples;
 
-use super::search::SampleDistances;
+use super::search::{mean_abs_difference, SampleDistances};
 
 /// The user's landmarks and how strongly they act ([module docs](self)).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -204,21 +204,11 @@ impl LandmarkData {
     /// when none is left). How well a whole map, not only its pins, repeats the distances to
     /// the landmarks ([module docs](self), 3.).
     pub fn distance_residual(&self, samples: &[usize], images: &[usize]) -> f64 {
-        let (mut sum, mut count) = (0.0, 0usize);
-        for (&s, &j) in samples.iter().zip(images) {
-            for l in 0..self.len() {
-                let (p, q) = (self.dist_x[(s, l)], self.dist_y[(j, l)]);
-                if p.is_finite() && q.is_finite() {
-                    sum += (p - q).abs();
-                    count += 1;
-                }
-            }
-        }
-        if count == 0 {
-            f64::INFINITY
-        } else {
-            sum / count as f64
-        }
+        let pairs = samples
+            .iter()
+            .zip(images)
+            .flat_map(|(&s, &j)| (0..self.len()).map(move |l| (self.dist_x[(s, l)], self.dist_y[(j, l)])));
+        mean_abs_difference(pairs).unwrap_or(f64::INFINITY)
     }
 
     /// The trilateration costs (s × a) between the search samples of X (`sx`) and the anchors of
@@ -227,19 +217,8 @@ impl LandmarkData {
     pub fn trilateration_costs(&self, sx: &SampleDistances, sy: &SampleDistances) -> Mat<f64> {
         let (xv, yv) = (&sx.samples.vertices, &sy.samples.vertices);
         Mat::from_fn(xv.len(), yv.len(), |i, a| {
-            let (mut sum, mut count) = (0.0, 0usize);
-            for l in 0..self.len() {
-                let (p, q) = (self.dist_x[(xv[i], l)], self.dist_y[(yv[a], l)]);
-                if p.is_finite() && q.is_finite() {
-                    sum += (p - q).abs();
-                    count += 1;
-                }
-            }
-            if count > 0 {
-                sum / count as f64
-            } else {
-                0.0
-            }
+            let pairs = (0..self.len()).map(|l| (self.dist_x[(xv[i], l)], self.dist_y[(yv[a], l)]));
+            mean_abs_difference(pairs).unwrap_or(0.0)
         })
     }
 

@@ -131,6 +131,16 @@ impl SampleDistances {
     }
 }
 
+/// mean |p − q| over the pairs (p, q) whose two values are finite (distances, unreachable = ∞);
+/// None when no pair is. The comparison of two shapes' distances that the per-sample
+/// distortion, the landmarks' trilateration costs and their residual share.
+pub(super) fn mean_abs_difference(pairs: impl Iterator<Item = (f64, f64)>) -> Option<f64> {
+    let (sum, count) = pairs
+        .filter(|(p, q)| p.is_finite() && q.is_finite())
+        .fold((0.0, 0usize), |(sum, count), (p, q)| (sum + (p - q).abs(), count + 1));
+    (count > 0).then(|| sum / count as f64)
+}
+
 /// The anchors of Y (positions in `y.samples`) of the images of X's samples.
 fn anchors_of(y: &SampleDistances, images: &[usize]) -> Vec<usize> {
     images.iter().map(|&v| y.nearest[v] as usize).collect()
@@ -153,19 +163,8 @@ pub fn sample_distortions(x: &SampleDistances, y: &SampleDistances, images: &[us
     let (dx, dy) = (&x.distances, &y.distances);
     (0..anchors.len())
         .map(|i| {
-            let (mut sum, mut count) = (0.0, 0usize);
-            for j in (0..anchors.len()).filter(|&j| j != i) {
-                let (a, b) = (dx[(i, j)], dy[(anchors[i], anchors[j])]);
-                if a.is_finite() && b.is_finite() {
-                    sum += (a - b).abs();
-                    count += 1;
-                }
-            }
-            if count > 0 {
-                sum / count as f64
-            } else {
-                f64::INFINITY
-            }
+            let pairs = (0..anchors.len()).filter(|&j| j != i).map(|j| (dx[(i, j)], dy[(anchors[i], anchors[j])]));
+            mean_abs_difference(pairs).unwrap_or(f64::INFINITY)
         })
         .collect()
 }
