@@ -12,7 +12,7 @@
 //! ```
 //! `MODE=always|auto|never` (default `always`: `--partial`); `SLOPE=s` the slope of the
 //! rectangular maps (default 1); `SEEDED=n` the sample maps from distances alone probed as
-//! challengers of the spectral choice (default 4; 0: none); `METRIC_ANCHORS=a` the anchors of the metric polish (default 128; 0: off);
+//! challengers of the spectral choice (default 4; 0: none); `METRIC_ANCHORS=a` the anchors of the metric polish (default 128; 0: off); `COVERED=0` no refinement on the covered region (step 7);
 //! `SCALE=area|distances` the area ratio as it is or estimated from distance-only maps
 //! (default: from the heat kernels, `PartialScale::Heat`);
 //! `RATIO=truth` the true covered fraction given as the area ratio (`PartialOptions::ratio`,
@@ -111,6 +111,9 @@ fn main() -> Result<()> {
     }
     if let Ok(s) = std::env::var("METRIC_ANCHORS") {
         opts.partial.metric_anchors = s.parse().expect("METRIC_ANCHORS");
+    }
+    if let Ok(s) = std::env::var("COVERED") {
+        opts.partial.covered = s != "0";
     }
     let detect_only = std::env::var("DETECT").is_ok();
     // The bases of `funcorr match` (the detection's heat kernels need them as the pipeline has

@@ -486,6 +486,40 @@ impl TriMesh {
             .collect())
     }
 
+    /// The submesh of the faces whose three vertices are kept (`keep`: #V flags): the mesh of
+    /// those faces over the vertices they use, renumbered in their order, and for every vertex
+    /// of the submesh its id here. None when no face is kept. Errors: `keep` of the wrong
+    /// length.
+    pub fn submesh(&self, keep: &[bool]) -> Result<Option<(TriMesh, Vec<usize>)>> {
+        if keep.len() != self.vertices.len() {
+            return Err(Error::invalid(
+                "submesh",
+                format!("{} vertex flags for a mesh of {} vertices", keep.len(), self.vertices.len()),
+            ));
+        }
+        let faces: Vec<[u32; 3]> = self.faces.iter().copied().filter(|f| f.iter().all(|&v| keep[v as usize])).collect();
+        if faces.is_empty() {
+            return Ok(None);
+        }
+        let mut new_id = vec![u32::MAX; self.vertices.len()];
+        let mut old = Vec::new();
+        for f in &faces {
+            for &v in f {
+                if new_id[v as usize] == u32::MAX {
+                    new_id[v as usize] = old.len() as u32;
+                    old.push(v as usize);
+                }
+            }
+        }
+        old.sort_unstable();
+        for (i, &v) in old.iter().enumerate() {
+            new_id[v] = i as u32;
+        }
+        let vertices = old.iter().map(|&v| self.vertices[v]).collect();
+        let faces = faces.iter().map(|f| f.map(|v| new_id[v as usize])).collect();
+        Ok(Some((TriMesh::new(vertices, faces)?, old)))
+    }
+
     /// The vertices as a point cloud (faces dropped), as in the paper's mesh-to-point-cloud
     /// experiment.
     pub fn to_point_set(&self) -> PointSet {
@@ -597,6 +631,23 @@ pub(crate) mod tests {
     /// A unit square in the plane z = 0 split into two triangles.
     pub(crate) fn square() -> TriMesh {
         TriMesh::new(vec![[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]], vec![[0, 1, 2], [0, 2, 3]]).unwrap()
+    }
+
+    #[test]
+    fn a_submesh_keeps_the_faces_of_kept_vertices_renumbered_in_order() {
+        // Square 0-1-2-3 with a fifth vertex 4 on a triangle of its own beside edge 1-2.
+        let mut v = square().vertices().to_vec();
+        v.push([2., 0.5, 0.]);
+        let m = TriMesh::new(v, vec![[0, 1, 2], [0, 2, 3], [1, 4, 2]]).unwrap();
+        let (sub, ids) = m.submesh(&[false, true, true, true, true]).unwrap().unwrap();
+        assert_eq!(ids, vec![1, 2, 4]);
+        assert_eq!(sub.faces(), &[[0, 2, 1]]);
+        assert_eq!(sub.vertices()[2], [2., 0.5, 0.]);
+        let (all, ids) = m.submesh(&[true; 5]).unwrap().unwrap();
+        assert_eq!((all, ids), (m.clone(), vec![0, 1, 2, 3, 4]));
+        assert!(m.submesh(&[true, true, false, false, false]).unwrap().is_none());
+        let e = m.submesh(&[true; 4]).unwrap_err().to_string();
+        assert!(e.contains("4 vertex flags for a mesh of 5 vertices"), "{e}");
     }
 
     #[test]

@@ -889,7 +889,7 @@ fn closer_to_landmarks(
 /// `p.refine.k_final`, then the polish. Returns (the final pull-back, map_xy, the samples of the
 /// restricted final searches) and appends its stage times.
 #[allow(clippy::type_complexity, clippy::too_many_arguments)]
-fn refine_from(
+pub(super) fn refine_from(
     x: &PreparedShape,
     y: &PreparedShape,
     c_start: Pullback,

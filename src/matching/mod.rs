@@ -12,6 +12,7 @@
 //! pull-back ([`crate::fmap::Pullback::transposed`]).
 
 pub mod axiomatic;
+pub mod covered;
 pub mod heat_scale;
 pub mod landmarks;
 pub mod options;
@@ -723,6 +724,7 @@ fn run_partial(
     detection.used_ratio = Some(r.area_ratio);
     detection.heat_minima = Some(r.heat_minima.clone()).filter(|m| !m.is_empty());
     detection.metric_polish = r.polish;
+    detection.covered_region = r.covered;
     let mut stages = r.stages;
     let c = r.c_yx.transpose().to_owned();
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
