@@ -412,6 +412,17 @@ fn the_refinement_on_the_covered_region_recovers_the_identity() {
     assert!(exact >= 0.9 && near >= 0.95, "identity on {exact:.3}, up to one edge on {near:.3}");
     assert_eq!(r.region_vertices, region.vertices.len());
     assert!(r.metric_polish.is_some());
+    // Large pairs search near the samples' map, as the whole pipeline does (forced here).
+    let mut near = p.clone();
+    near.near.above_pairs = 0;
+    let rn = refine_on_covered_region(&x, &y, &slid, &cov, &near, 128).unwrap().expect("refined");
+    let agree = (0..n).filter(|&i| rn.map_xy[i] == r.map_xy[i]).count() as f64 / n as f64;
+    eprintln!(
+        "restricted searches: identity on {:.1} %, {:.1} % as exact",
+        100.0 * identity(&rn.map_xy),
+        100.0 * agree
+    );
+    assert!(identity(&rn.map_xy) >= 0.9, "identity on {:.3}", identity(&rn.map_xy));
     // A region of a few hundred vertices (X mapped onto a small patch) is skipped.
     let patch: Vec<usize> = (0..n).map(|i| ring[orig[0]].get(i % 3).copied().unwrap_or(orig[0])).collect();
     let none = vec![0.0; y.n()];

@@ -455,18 +455,7 @@ pub fn axiomatic_pipeline_cow(
     let t = std::time::Instant::now();
     crate::progress::stage("search samples")?;
     let probe_samples = landmarks::with_landmarks(samples_of(x, p.probe.samples)?, &lm_x, p.landmarks.pin_weight);
-    // Large pairs: every search restricted to samples or near the samples' map (NearSearch).
-    let near_positions = match (x.positions(), y.positions()) {
-        (Some(px), Some(py))
-            if (px.len() as u64).saturating_mul(py.len() as u64) > p.near.above_pairs
-                && p.probe.samples > 0
-                && p.refine.samples > 0 =>
-        {
-            let pairs = (px.len() as u64).saturating_mul(py.len() as u64);
-            Some(refine::Near { x: px, y: py, cells: p.near.cells, certify: pairs <= p.near.certified_up_to })
-        }
-        _ => None,
-    };
+    let near_positions = near_positions(x, y, p);
     let probe_refs = match near_positions {
         Some(_) if fits.len() > 1 => Some(samples_of(y, p.probe.samples)?),
         _ => None,
@@ -883,6 +872,24 @@ fn closer_to_landmarks(
     };
     let (start, end) = (residual(c_start.as_ref())?, residual(c.as_ref())?);
     Ok(if start < (1.0 - LANDMARK_START_MARGIN) * end { c_start.as_ref().to_owned() } else { c })
+}
+
+/// Large pairs (n · m above `p.near.above_pairs`, both shapes with positions, sampled probes
+/// and refinement): every search restricted to samples or near the samples' map (NearSearch);
+/// None otherwise.
+pub(super) fn near_positions<'a>(
+    x: &'a PreparedShape,
+    y: &'a PreparedShape,
+    p: &AxiomaticPipeline,
+) -> Option<refine::Near<'a>> {
+    let (px, py) = (x.positions()?, y.positions()?);
+    let pairs = (px.len() as u64).saturating_mul(py.len() as u64);
+    (pairs > p.near.above_pairs && p.probe.samples > 0 && p.refine.samples > 0).then_some(refine::Near {
+        x: px,
+        y: py,
+        cells: p.near.cells,
+        certify: pairs <= p.near.certified_up_to,
+    })
 }
 
 /// The final refinement from the pull-back `c_start`: ZoomOut (or its bijective variant) to

@@ -27,7 +27,7 @@
 
 use faer::Mat;
 
-use super::axiomatic::{refine_from, samples_of, AxiomaticPipeline};
+use super::axiomatic::{near_positions, refine_from, samples_of, AxiomaticPipeline};
 use crate::error::{Error, Result};
 use crate::fmap::Pullback;
 use crate::geodesic::GraphGeodesics;
@@ -168,8 +168,10 @@ pub fn refine_on_covered_region(
     q.refine.k_final = k_final;
     q.landmarks = Default::default();
     let mut refine_stages = Vec::new();
+    // Large pairs: the whole pipeline's searches near the samples' map.
+    let near = near_positions(x, &region.shape, &q);
     let (c, map, _) =
-        refine_from(x, &region.shape, Pullback(c0.clone()), &Pullback(c0), &q, &None, (&[], None), &mut refine_stages)?;
+        refine_from(x, &region.shape, Pullback(c0.clone()), &Pullback(c0), &q, &near, (&[], None), &mut refine_stages)?;
     stages.extend(refine_stages.into_iter().map(|(s, t)| (format!("covered {s}"), t)));
     let (map, metric_polish) = match (metric_anchors, x.triangles(), region.shape.triangles()) {
         (a, Some(tx), Some(tr)) if a > 0 => {
