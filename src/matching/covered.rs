@@ -119,7 +119,8 @@ fn into_region(y: &PreparedShape, region: &CoveredRegion, map_xy: &[usize]) -> R
 /// What [`refine_on_covered_region`] did (reported in `report.json` by the partial path).
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct CoveredRefinement {
-    /// The refined map X → Y (length n, vertex ids of Y).
+    /// The refined map X → Y (length n, vertex ids of Y; the partial path moves it out into
+    /// its result, as it does the metric polish's).
     #[serde(skip)]
     pub map_xy: Vec<usize>,
     /// Vertices of the covered region Y' it was refined on.
@@ -129,7 +130,8 @@ pub struct CoveredRefinement {
     /// The metric polish on the region, when it ran.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub metric_polish: Option<crate::refine::MetricPolished>,
-    /// Seconds per stage (covered region, its ZoomOut and polish, its metric polish).
+    /// Seconds per stage (covered region, its ZoomOut and polish, its metric polish; moved into
+    /// the partial path's stages).
     #[serde(skip)]
     pub stages: Vec<(String, f64)>,
 }

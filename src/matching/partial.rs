@@ -1152,12 +1152,12 @@ fn pass(
     // docs; `super::covered`); then the coverage of its map and the pull-back of that map (the
     // map Y → X is read off it).
     let mut c_yx = c_yx;
-    let covered =
+    let mut covered =
         if o.covered { super::covered::refine_on_covered_region(x, y, &map_xy, &coverage, p, anchors)? } else { None };
-    if let Some(refined) = &covered {
+    if let Some(refined) = &mut covered {
         let t = std::time::Instant::now();
-        map_xy.clone_from(&refined.map_xy);
-        stages.extend(refined.stages.iter().cloned());
+        map_xy = std::mem::take(&mut refined.map_xy);
+        stages.append(&mut refined.stages);
         let all = Samples::all(&x.basis.mass);
         c_yx = refine::pullback(phi, psi, &all, &map_xy, c_yx.nrows(), c_yx.ncols())?;
         coverage = self::coverage(y, &map_xy, r)?;
