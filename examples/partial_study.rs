@@ -12,7 +12,7 @@
 //! ```
 //! `MODE=always|auto|never` (default `always`: `--partial`); `SLOPE=s` the slope of the
 //! rectangular maps (default 1); `SEEDED=n` the sample maps from distances alone probed as
-//! challengers of the spectral choice (default 4; 0: none); `METRIC_ANCHORS=a` the anchors of the metric polish (default 128; 0: off); `COVERED=0` no refinement on the covered region (step 7);
+//! challengers of the spectral choice (default 4; 0: none); `METRIC_ANCHORS=a` the anchors of the metric polish (default 128; 0: off); `COVERED=0` no refinement on the covered region (step 7); `FINALISTS=0` no second finalist (step 8);
 //! `SCALE=area|distances` the area ratio as it is or estimated from distance-only maps
 //! (default: from the heat kernels, `PartialScale::Heat`);
 //! `RATIO=truth` the true covered fraction given as the area ratio (`PartialOptions::ratio`,
@@ -25,6 +25,9 @@
 //! orientation, data misfit, corrected distortion, corrected orientation, kind (0 fit, 1
 //! corrected, 2 seeded), mean error of its sample map (as `direct`), dominance], and `map_ratio`:
 //! the area ratio read off the result's and the truth's sample maps (`partial::ratio_of_map`).
+//! Every line also has `finalists` (step 8, a contested choice: [candidate, final orientation,
+//! chosen (0/1), error of its final map], the first choice first) and `minima` (the heat
+//! energy's near-equal minima of the ratio).
 //! `SCALE_ONLY=1`: no matching, the heat-kernel ratio against the covered fraction (`CURVE=1`
 //! adds the energy on its coarse grid). `DETECT=1`: no matching, the detection of every shape of the
 //! pairs against the pair's other shape (for whole data sets: none should be detected).
@@ -114,6 +117,9 @@ fn main() -> Result<()> {
     }
     if let Ok(s) = std::env::var("COVERED") {
         opts.partial.covered = s != "0";
+    }
+    if let Ok(s) = std::env::var("FINALISTS") {
+        opts.partial.finalists = s != "0";
     }
     let detect_only = std::env::var("DETECT").is_ok();
     // The bases of `funcorr match` (the detection's heat kernels need them as the pipeline has
@@ -335,14 +341,30 @@ fn main() -> Result<()> {
                     None => "null".to_string(),
                 };
                 let corrected = r.candidates.as_ref().is_some_and(|(c, i)| c[*i].corrected_from.is_some());
+                // Both maps of a contested choice: [candidate, orientation, chosen, error].
+                let finalists: Vec<String> = r
+                    .partial
+                    .as_ref()
+                    .map_or(&[][..], |d| &d.finalists[..])
+                    .iter()
+                    .map(|f| {
+                        let pr: Vec<(usize, usize)> =
+                            present.iter().map(|&i| (ty[i].unwrap_or(0), f.map_xy[tx[i].unwrap()])).collect();
+                        let e = geo.pair_distances(&pr).expect("distances");
+                        let e = 100.0 * e.iter().sum::<f64>() / e.len().max(1) as f64 / sqrt_area;
+                        format!("[{},{:.3},{},{e:.3}]", f.candidate, f.orientation, u8::from(f.chosen))
+                    })
+                    .collect();
                 format!(
-                    "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"n\":{},\"ratio\":{:.3},\"partial\":{det},\"direct\":{d:.3},\"sym\":{s:.3},\"iou\":{iou:.3},\"points\":{},\"used\":{:.3},\"k\":{chosen},\"corrected\":{corrected},\"C\":[{},{}],\"true_ratio\":{true_ratio:.3},\"seconds\":{secs:.2},\"polish\":{polish}{diag}}}",
+                    "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"n\":{},\"ratio\":{:.3},\"partial\":{det},\"direct\":{d:.3},\"sym\":{s:.3},\"iou\":{iou:.3},\"points\":{},\"used\":{:.3},\"k\":{chosen},\"corrected\":{corrected},\"C\":[{},{}],\"true_ratio\":{true_ratio:.3},\"seconds\":{secs:.2},\"polish\":{polish},\"finalists\":[{}],\"minima\":{:?}{diag}}}",
                     x.n(),
                     x.area / y.area,
                     present.len(),
                     r.partial.as_ref().and_then(|d| d.used_ratio).unwrap_or(f64::NAN),
                     r.c.nrows(),
-                    r.c.ncols()
+                    r.c.ncols(),
+                    finalists.join(","),
+                    r.partial.as_ref().and_then(|d| d.heat_minima.clone()).unwrap_or_default()
                 )
             }
             Err(e) => format!("{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"error\":\"{e}\"}}"),

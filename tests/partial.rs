@@ -153,6 +153,13 @@ fn a_cut_copy_recovers_the_identity() {
         (0..n).filter(|&i| r.map_xy[i] == orig[i] || ring[orig[i]].contains(&r.map_xy[i])).count() as f64 / n as f64;
     eprintln!("identity on {:.1} % of the vertices, up to one edge on {:.1} %", 100.0 * exact, 100.0 * near);
     assert!(exact >= 0.95, "identity on {exact:.3}, up to one edge on {near:.3}");
+    // A contested choice keeps exactly one finalist, whose final map is the result.
+    let fin = &r.partial.as_ref().unwrap().finalists;
+    if !fin.is_empty() {
+        assert_eq!(fin.len(), 2, "{fin:?}");
+        assert_eq!(fin.iter().filter(|f| f.chosen).count(), 1, "{fin:?}");
+        assert!(fin.iter().any(|f| f.chosen && f.map_xy == r.map_xy), "{fin:?}");
+    }
     // The report says what the polish did: the metric's floor is zero to round-off here (the
     // part's distances are the whole's), the spectral reading's is not.
     let d = r.partial.as_ref().unwrap();
@@ -363,6 +370,14 @@ fn seeded_maps_replace_a_spectral_choice_they_dominate() {
     let without = run(&x, &y, &f, &scrambled, &opts).unwrap();
     eprintln!("without seeded maps: median {:.2} edges", near(&without));
     assert!(c.seeded.is_some() && c.dominance >= funcorr::matching::partial::SEEDED_DOMINANCE, "{c:?}");
+    // The choice was contested (step 8): both finished, the seeded map first and kept, its
+    // final map the result's; the spectral choice's (the scrambled data's) is no better oriented.
+    let fin = &with.partial.as_ref().unwrap().finalists;
+    eprintln!("finalists {:?}", fin.iter().map(|f| (f.candidate, f.orientation, f.chosen)).collect::<Vec<_>>());
+    assert_eq!(fin.len(), 2, "{fin:?}");
+    assert!(fin[0].chosen && !fin[1].chosen && fin[0].candidate == *chosen, "{fin:?}");
+    assert_eq!(fin[0].map_xy, with.map_xy);
+    assert!(fin[0].orientation > 0.8 && fin[1].orientation < fin[0].orientation, "{fin:?}");
     assert!(near(&with) < 3.0, "median {} edges from the truth", near(&with));
     assert!(near(&without) > 10.0, "median {} edges from the truth", near(&without));
 }

@@ -725,6 +725,7 @@ fn run_partial(
     detection.heat_minima = Some(r.heat_minima.clone()).filter(|m| !m.is_empty());
     detection.metric_polish = r.polish;
     detection.covered_region = r.covered;
+    detection.finalists = r.finalists;
     let mut stages = r.stages;
     let c = r.c_yx.transpose().to_owned();
     let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());

@@ -80,6 +80,18 @@
 //!    pairs' maps slid by a few edges everywhere: on faust_r_partial the mean went from 7.68 to
 //!    7.09 and the pairs below 10 from 4.10 to 3.27, on tosca_r_partial from 8.54 to 8.01
 //!    (EXPERIMENTS.md). About 1 s on a 2k → 5k pair.
+//! 8. **Finalists** ([`PartialOptions::finalists`]): a choice between two basins made on
+//!    samples can be undone only by a final map. When step 3's challenger fits at least
+//!    [`FINALIST_DOMINANCE`] (½) of the samples better than the choice (whichever of the two
+//!    was chosen), both are finished (steps 4–7) and the other replaces the choice when its
+//!    final map's orientation score ([`search::orientation`]) is higher by
+//!    [`FINALIST_ORIENTATION_MARGIN`] or more. Distances cannot judge the two: a map in the
+//!    wrong basin, finished, fits its covered region as well as the right one (a body's halves
+//!    are near-isometric), and the samples' orientation is noisy before the refinement; the
+//!    finished maps' orientation tells a part turned or mirrored from the right map. On
+//!    faust_r_partial the mean went from 7.09 to 5.97 (pairs above 10: 14 → 11; 3 switched,
+//!    all right), on tosca_r_partial from 8.01 to 7.84 (1 switched), the faust parts as clouds
+//!    from 15.13 to 14.22 (3 switched), none worse (EXPERIMENTS.md). About 2 s more on a contested 2k → 5k pair (half of the pairs).
 //!
 //! **Detection** ([`detect`]): X is taken for a part when its boundary (total length of its
 //! boundary loops, / √area(X)) exceeds Y's (/ √area(Y)) by at least `min_boundary` and its area
@@ -171,9 +183,17 @@ pub struct PartialOptions {
     /// step 7; [`super::covered`]; default true).
     #[serde(default = "covered")]
     pub covered: bool,
+    /// Finish both the choice and a challenger that contests it and keep the one whose final
+    /// map keeps the orientation clearly better (module docs, step 8; default true).
+    #[serde(default = "finalists")]
+    pub finalists: bool,
 }
 
 fn covered() -> bool {
+    true
+}
+
+fn finalists() -> bool {
     true
 }
 
@@ -210,6 +230,7 @@ impl Default for PartialOptions {
             metric_anchors: METRIC_ANCHORS,
             ratio: None,
             covered: covered(),
+            finalists: finalists(),
         }
     }
 }
@@ -274,6 +295,10 @@ pub struct Detection {
     /// the partial path ran, with the step off, or skipped for a region too small).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub covered_region: Option<super::covered::CoveredRefinement>,
+    /// Both maps of a contested choice, finished and judged by their orientation
+    /// ([`PartialResult::finalists`]; empty when the choice was not contested).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub finalists: Vec<Finalist>,
     /// Why, in words.
     pub reason: String,
 }
@@ -413,6 +438,7 @@ pub fn detect(x: &PreparedShape, y: &PreparedShape, opts: &PartialOptions) -> De
         heat_minima: None,
         metric_polish: None,
         covered_region: None,
+        finalists: Vec::new(),
         reason,
     }
 }
@@ -579,7 +605,51 @@ pub struct PartialResult {
     pub polish: Option<refine::MetricPolished>,
     /// The refinement on the covered region (step 7), when it ran.
     pub covered: Option<super::covered::CoveredRefinement>,
+    /// With a contested choice, both maps finished (the first choice first; module docs,
+    /// step 8); empty otherwise.
+    pub finalists: Vec<Finalist>,
 }
+
+/// A candidate finished to a final map and judged by its orientation (module docs, step 8).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Finalist {
+    /// Its index among the candidates ([`PartialResult::candidates`]).
+    pub candidate: usize,
+    /// The orientation score of its final map on the search's samples of X
+    /// ([`search::orientation`], in [−1, 1]).
+    pub orientation: f64,
+    /// Whether it is the result.
+    pub chosen: bool,
+    /// Its final map X → Y (length n, vertex ids of Y).
+    #[serde(skip)]
+    pub map_xy: Vec<usize>,
+}
+
+/// The index of the finalist kept (module docs, step 8): the second when its orientation score
+/// exceeds the first's by [`FINALIST_ORIENTATION_MARGIN`] or more in the asked direction (the
+/// score negated for orientation-reversing maps), else the first (0 for none; always the first
+/// when orientation is ignored).
+pub fn final_choice(finalists: &[Finalist], orientation: Orientation) -> usize {
+    let sign = match orientation {
+        Orientation::Preserve => 1.0,
+        Orientation::Reverse => -1.0,
+        Orientation::Ignore => return 0,
+    };
+    match finalists {
+        [first, second] if sign * (second.orientation - first.orientation) >= FINALIST_ORIENTATION_MARGIN => 1,
+        _ => 0,
+    }
+}
+
+/// A challenger whose corrected sample map fits at least this share of the samples better than
+/// the choice's ([`search::dominance`]) contests it (module docs, step 8): both are finished.
+pub const FINALIST_DOMINANCE: f64 = 0.5;
+
+/// The other finalist replaces the choice when its final map's orientation score exceeds the
+/// choice's (in the asked direction, [`final_choice`]) by at least this (module docs, step 8). On faust_r_partial the other finalist's
+/// score was higher by 0.51–0.69 where it was right and by at most 0.25 where it was in a wrong
+/// basin; every margin in (0.25, 0.51] gives the same maps there (EXPERIMENTS.md).
+pub const FINALIST_ORIENTATION_MARGIN: f64 = 0.4;
 
 /// A seeded map (module docs, step 3) replaces the spectral choice when its corrected sample map
 /// fits X's distances better at this share of the samples or more (per-sample distortions,
@@ -895,7 +965,7 @@ fn pass(
     (sx, sy): (&SampleDistances, &SampleDistances),
     r: f64,
 ) -> Result<PartialResult> {
-    let Surfaces { px, nx, py, ny, gx: graph_x, gy: graph_y } = *surfaces;
+    let Surfaces { px, nx, py, ny, .. } = *surfaces;
     let slope = Slope { ratio: o.slope * r, max_x: x.basis.k() };
     // The pull-backs of point maps: twice as many functions of X as the slope gives, so that the
     // restrictions of Y's functions are represented almost exactly.
@@ -1085,7 +1155,9 @@ fn pass(
         v.get(v.len() / 2).copied().unwrap_or(1.0)
     };
     let (me, md) = (median(&|c| c.distortion), median(&|c| c.data_misfit));
-    let mut chosen = choose(&candidates[..spectral], p.fit.orientation, |c| c.distortion / me + c.data_misfit / md);
+    let spectral_choice =
+        choose(&candidates[..spectral], p.fit.orientation, |c| c.distortion / me + c.data_misfit / md);
+    let mut chosen = spectral_choice;
     let challenger = (spectral..probed.len())
         .filter(|&i| agrees(&candidates[i], p.fit.orientation) && candidates[i].corrected_distortion.is_finite())
         .min_by(|&a, &b| candidates[a].corrected_distortion.total_cmp(&candidates[b].corrected_distortion));
@@ -1100,69 +1172,42 @@ fn pass(
     }
     stages.push(("correction".to_string(), t.elapsed().as_secs_f64()));
 
-    let t = std::time::Instant::now();
-    crate::progress::stage("zoomout")?;
-    let c_fit = starts.swap_remove(chosen);
-    let c_start = probed.swap_remove(chosen).c;
-    let (c_yx, map_xy) = if p.refine.k_final == 0 {
-        (c_fit.clone(), refine::map_of_pullback(phi, psi, c_fit.as_ref(), None, Scope::Exact)?)
-    } else {
-        let samples = samples_of(x, p.refine.samples)?;
-        let ky = p.refine.k_final.max(c_start.ncols()).min(y.basis.k());
-        // Read as the probe found it: ZoomOut's reading ([`Reading::Pushed`]) from here loses the
-        // basin on real pairs (EXPERIMENTS.md).
-        let c =
-            zoomout(x, y, &samples, &c_start, (Reading::Restricted, Reading::Restricted), ky, p.refine.step, slope)?;
-        let map = restricted_map(phi, psi, &c, None)?;
-        // FINAL_ROUNDS more at the final size on every vertex of X.
-        let all = Samples::all(&x.basis.mass);
-        let (mut c, mut map) = (c, map);
-        for _ in 0..FINAL_ROUNDS {
-            crate::progress::check()?;
-            c = refine::pullback(phi, psi, &all, &map, wide.kx(ky), ky)?;
-            map = restricted_map(phi, psi, &c, None)?;
+    // The finalists (module docs, step 8): the choice and, when a challenger fits at least
+    // half of the samples better, the other of the two, both finished; the other replaces the
+    // choice when its final map keeps the orientation clearly better.
+    let mut order = vec![chosen];
+    if let Some(b) = challenger {
+        let other = if chosen == b { spectral_choice } else { b };
+        if o.finalists && candidates[b].dominance >= FINALIST_DOMINANCE && other != chosen {
+            order.push(other);
         }
-        (c, map)
-    };
-    stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
-    // The metric polish (module docs, step 5) with the final reading as its spectral term.
-    // Its memory is about 24 (n + m) A bytes (distance fields and the annulus lists): above
-    // METRIC_MAX_ENTRIES entries (m A) the polish is skipped (a part of a 10⁶-vertex whole).
-    let fits = y.n().saturating_mul(o.metric_anchors) <= METRIC_MAX_ENTRIES;
-    let anchors = if fits { o.metric_anchors } else { 0 };
-    let (mut map_xy, polish) = if anchors > 0 {
-        let t = std::time::Instant::now();
-        crate::progress::stage("metric polish")?;
-        let anchors = samples_of(x, anchors.max(3))?.vertices;
-        let embedded = crate::linalg::mul(phi.subcols(0, c_yx.nrows()), c_yx.as_ref());
-        let reading = Some((embedded.as_ref(), psi.subcols(0, c_yx.ncols())));
-        let o = refine::MetricPolishOptions::default();
-        let mut r = refine::metric_polish(graph_x, graph_y, graph_y, &anchors, &map_xy, &o, reading)?;
-        stages.push(("metric polish".to_string(), t.elapsed().as_secs_f64()));
-        (std::mem::take(&mut r.map_xy), Some(r))
-    } else {
-        (map_xy, None)
-    };
-
-    let t = std::time::Instant::now();
-    crate::progress::stage("coverage")?;
-    let mut coverage = coverage(y, &map_xy, r)?;
-    stages.push(("coverage".to_string(), t.elapsed().as_secs_f64()));
-    // Step 7: the map refined on the covered region of Y, with the metric polish there (module
-    // docs; `super::covered`); then the coverage of its map and the pull-back of that map (the
-    // map Y → X is read off it).
-    let mut c_yx = c_yx;
-    let mut covered =
-        if o.covered { super::covered::refine_on_covered_region(x, y, &map_xy, &coverage, p, anchors)? } else { None };
-    if let Some(refined) = &mut covered {
-        let t = std::time::Instant::now();
-        map_xy = std::mem::take(&mut refined.map_xy);
-        stages.append(&mut refined.stages);
-        let all = Samples::all(&x.basis.mass);
-        c_yx = refine::pullback(phi, psi, &all, &map_xy, c_yx.nrows(), c_yx.ncols())?;
-        coverage = self::coverage(y, &map_xy, r)?;
-        stages.push(("covered coverage".to_string(), t.elapsed().as_secs_f64()));
     }
+    let tail = Tail { x, y, p, o, surfaces, slope, wide, r };
+    let mut finished: Vec<Finished> =
+        order.iter().map(|&i| tail.finish(&starts[i], &probed[i].c)).collect::<Result<_>>()?;
+    let xs = &s.x.samples.vertices;
+    let mut finalists: Vec<Finalist> = order
+        .iter()
+        .zip(&finished)
+        .map(|(&i, f)| {
+            let images: Vec<usize> = xs.iter().map(|&v| f.map_xy[v]).collect();
+            let orientation = search::orientation(px, nx, py, ny, xs, &images, &s.neighbours);
+            Finalist { candidate: i, orientation, chosen: false, map_xy: f.map_xy.clone() }
+        })
+        .collect();
+    let best = final_choice(&finalists, p.fit.orientation);
+    finalists[best].chosen = true;
+    let chosen = order[best];
+    if finalists.len() < 2 {
+        finalists.clear();
+    }
+    let Finished { map_xy, c_yx, polish, coverage, covered, stages: tail_stages } = finished.swap_remove(best);
+    stages.extend(tail_stages);
+    // The other finalist's time, reported apart.
+    for other in finished {
+        stages.extend(other.stages.into_iter().map(|(s, t)| (format!("other finalist: {s}"), t)));
+    }
+    let c_fit = starts.swap_remove(chosen);
     Ok(PartialResult {
         map_xy,
         c_yx,
@@ -1176,7 +1221,106 @@ fn pass(
         heat_minima: Vec::new(),
         polish,
         covered,
+        finalists,
     })
+}
+
+/// What the end of a pass needs to finish a start.
+struct Tail<'a> {
+    x: &'a PreparedShape,
+    y: &'a PreparedShape,
+    p: &'a AxiomaticPipeline,
+    o: &'a PartialOptions,
+    surfaces: &'a Surfaces<'a>,
+    slope: Slope,
+    wide: Slope,
+    r: f64,
+}
+
+/// A start finished: the final map and what made it.
+struct Finished {
+    map_xy: Vec<usize>,
+    c_yx: Mat<f64>,
+    polish: Option<refine::MetricPolished>,
+    coverage: Vec<f64>,
+    covered: Option<super::covered::CoveredRefinement>,
+    stages: Vec<(String, f64)>,
+}
+
+impl Tail<'_> {
+    /// The rest of a pass from the probed map `c_start` of the fit `c_fit` (both k_X × k_Y,
+    /// Y → X): ZoomOut on X's samples and FINAL_ROUNDS on every vertex (the fit's map without
+    /// ZoomOut), the metric polish, the coverage and step 7.
+    fn finish(&self, c_fit: &Mat<f64>, c_start: &Mat<f64>) -> Result<Finished> {
+        let Tail { x, y, p, o, surfaces, slope, wide, r } = *self;
+        let (phi, psi) = (x.basis.eigenvectors.as_ref(), y.basis.eigenvectors.as_ref());
+        let mut stages = Vec::new();
+        let t = std::time::Instant::now();
+        crate::progress::stage("zoomout")?;
+        let (c_yx, map_xy) = if p.refine.k_final == 0 {
+            (c_fit.clone(), refine::map_of_pullback(phi, psi, c_fit.as_ref(), None, Scope::Exact)?)
+        } else {
+            let samples = samples_of(x, p.refine.samples)?;
+            let ky = p.refine.k_final.max(c_start.ncols()).min(y.basis.k());
+            // Read as the probe found it: ZoomOut's reading ([`Reading::Pushed`]) from here loses the
+            // basin on real pairs (EXPERIMENTS.md).
+            let c =
+                zoomout(x, y, &samples, c_start, (Reading::Restricted, Reading::Restricted), ky, p.refine.step, slope)?;
+            let map = restricted_map(phi, psi, &c, None)?;
+            // FINAL_ROUNDS more at the final size on every vertex of X.
+            let all = Samples::all(&x.basis.mass);
+            let (mut c, mut map) = (c, map);
+            for _ in 0..FINAL_ROUNDS {
+                crate::progress::check()?;
+                c = refine::pullback(phi, psi, &all, &map, wide.kx(ky), ky)?;
+                map = restricted_map(phi, psi, &c, None)?;
+            }
+            (c, map)
+        };
+        stages.push(("zoomout".to_string(), t.elapsed().as_secs_f64()));
+        // The metric polish (module docs, step 5) with the final reading as its spectral term.
+        // Its memory is about 24 (n + m) A bytes (distance fields and the annulus lists): above
+        // METRIC_MAX_ENTRIES entries (m A) the polish is skipped (a part of a 10⁶-vertex whole).
+        let fits = y.n().saturating_mul(o.metric_anchors) <= METRIC_MAX_ENTRIES;
+        let anchors = if fits { o.metric_anchors } else { 0 };
+        let (mut map_xy, polish) = if anchors > 0 {
+            let t = std::time::Instant::now();
+            crate::progress::stage("metric polish")?;
+            let anchors = samples_of(x, anchors.max(3))?.vertices;
+            let embedded = crate::linalg::mul(phi.subcols(0, c_yx.nrows()), c_yx.as_ref());
+            let reading = Some((embedded.as_ref(), psi.subcols(0, c_yx.ncols())));
+            let o = refine::MetricPolishOptions::default();
+            let mut r = refine::metric_polish(surfaces.gx, surfaces.gy, surfaces.gy, &anchors, &map_xy, &o, reading)?;
+            stages.push(("metric polish".to_string(), t.elapsed().as_secs_f64()));
+            (std::mem::take(&mut r.map_xy), Some(r))
+        } else {
+            (map_xy, None)
+        };
+
+        let t = std::time::Instant::now();
+        crate::progress::stage("coverage")?;
+        let mut coverage = coverage(y, &map_xy, r)?;
+        stages.push(("coverage".to_string(), t.elapsed().as_secs_f64()));
+        // Step 7: the map refined on the covered region of Y, with the metric polish there (module
+        // docs; `super::covered`); then the coverage of its map and the pull-back of that map (the
+        // map Y → X is read off it).
+        let mut c_yx = c_yx;
+        let mut covered = if o.covered {
+            super::covered::refine_on_covered_region(x, y, &map_xy, &coverage, p, anchors)?
+        } else {
+            None
+        };
+        if let Some(refined) = &mut covered {
+            let t = std::time::Instant::now();
+            map_xy = std::mem::take(&mut refined.map_xy);
+            stages.append(&mut refined.stages);
+            let all = Samples::all(&x.basis.mass);
+            c_yx = refine::pullback(phi, psi, &all, &map_xy, c_yx.nrows(), c_yx.ncols())?;
+            coverage = self::coverage(y, &map_xy, r)?;
+            stages.push(("covered coverage".to_string(), t.elapsed().as_secs_f64()));
+        }
+        Ok(Finished { map_xy, c_yx, polish, coverage, covered, stages })
+    }
 }
 
 /// X's side of the energy (computed on X at unit area) with its differential operators in Y's
@@ -1237,6 +1381,25 @@ mod tests {
     use crate::primitives::bumpy_sphere;
     use crate::shape::TriMesh;
     use crate::spectral::{eigen_basis, Basis, SpectralOptions};
+
+    /// The second finalist is kept only when its orientation is higher by the margin.
+    #[test]
+    fn the_second_finalist_replaces_the_first_only_by_a_clear_orientation_margin() {
+        let f = |orientation: f64| Finalist { candidate: 0, orientation, chosen: false, map_xy: Vec::new() };
+        let m = FINALIST_ORIENTATION_MARGIN;
+        let keep = Orientation::Preserve;
+        assert_eq!(final_choice(&[], keep), 0);
+        assert_eq!(final_choice(&[f(0.1)], keep), 0);
+        assert_eq!(final_choice(&[f(0.1), f(0.1 + m + 1e-9)], keep), 1);
+        assert_eq!(final_choice(&[f(0.1), f(0.1 + 0.9 * m)], keep), 0);
+        assert_eq!(final_choice(&[f(0.9), f(-0.9)], keep), 0);
+        assert_eq!(final_choice(&[f(-0.5), f(0.5)], keep), 1);
+        assert_eq!(final_choice(&[f(0.2), f(f64::NAN)], keep), 0);
+        // Orientation-reversing maps: the lower score is the better one; ignored: no switch.
+        assert_eq!(final_choice(&[f(0.5), f(-0.5)], Orientation::Reverse), 1);
+        assert_eq!(final_choice(&[f(-0.5), f(0.5)], Orientation::Reverse), 0);
+        assert_eq!(final_choice(&[f(-0.5), f(0.5)], Orientation::Ignore), 0);
+    }
 
     /// X's side at unit area, brought to Y's units by [`in_units_of_y`], equals the side of X at
     /// its size in Y's units (area r), in the same basis.
