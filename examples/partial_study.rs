@@ -231,9 +231,11 @@ fn main() -> Result<()> {
                 let geo = ExactGeodesics::new(ym).expect("geodesics");
                 let sqrt_area = ym.total_area().sqrt();
                 let present: Vec<usize> = (0..tx.len()).filter(|&i| tx[i].is_some() && ty[i].is_some()).collect();
-                let pairs_of = |truth: &[Option<usize>]| -> Vec<(usize, usize)> {
-                    present.iter().map(|&i| (truth[i].unwrap_or(0), r.map_xy[tx[i].unwrap()])).collect()
+                // (truth, image) per template point present in X, for a map X → Y.
+                let pairs_for = |truth: &[Option<usize>], map_xy: &[usize]| -> Vec<(usize, usize)> {
+                    present.iter().map(|&i| (truth[i].unwrap_or(0), map_xy[tx[i].unwrap()])).collect()
                 };
+                let pairs_of = |truth: &[Option<usize>]| pairs_for(truth, &r.map_xy);
                 let direct = geo.pair_distances(&pairs_of(&ty)).expect("distances");
                 let mirrored = geo.pair_distances_capped(&pairs_of(&ts), &direct).expect("distances");
                 let kk = direct.len() as f64;
@@ -348,9 +350,7 @@ fn main() -> Result<()> {
                     .map_or(&[][..], |d| &d.finalists[..])
                     .iter()
                     .map(|f| {
-                        let pr: Vec<(usize, usize)> =
-                            present.iter().map(|&i| (ty[i].unwrap_or(0), f.map_xy[tx[i].unwrap()])).collect();
-                        let e = geo.pair_distances(&pr).expect("distances");
+                        let e = geo.pair_distances(&pairs_for(&ty, &f.map_xy)).expect("distances");
                         let e = 100.0 * e.iter().sum::<f64>() / e.len().max(1) as f64 / sqrt_area;
                         format!("[{},{:.3},{},{e:.3}]", f.candidate, f.orientation, u8::from(f.chosen))
                     })

@@ -1185,22 +1185,24 @@ fn pass(
     let tail = Tail { x, y, p, o, surfaces, slope, wide, r };
     let mut finished: Vec<Finished> =
         order.iter().map(|&i| tail.finish(&starts[i], &probed[i].c)).collect::<Result<_>>()?;
-    let xs = &s.x.samples.vertices;
-    let mut finalists: Vec<Finalist> = order
-        .iter()
-        .zip(&finished)
-        .map(|(&i, f)| {
-            let images: Vec<usize> = xs.iter().map(|&v| f.map_xy[v]).collect();
-            let orientation = search::orientation(px, nx, py, ny, xs, &images, &s.neighbours);
-            Finalist { candidate: i, orientation, chosen: false, map_xy: f.map_xy.clone() }
-        })
-        .collect();
-    let best = final_choice(&finalists, p.fit.orientation);
-    finalists[best].chosen = true;
-    let chosen = order[best];
-    if finalists.len() < 2 {
-        finalists.clear();
+    // Judged only when contested: an uncontested choice has one finished map and no finalists.
+    let mut finalists = Vec::new();
+    let mut best = 0;
+    if order.len() > 1 {
+        let xs = &s.x.samples.vertices;
+        finalists = order
+            .iter()
+            .zip(&finished)
+            .map(|(&i, f)| {
+                let images: Vec<usize> = xs.iter().map(|&v| f.map_xy[v]).collect();
+                let orientation = search::orientation(px, nx, py, ny, xs, &images, &s.neighbours);
+                Finalist { candidate: i, orientation, chosen: false, map_xy: f.map_xy.clone() }
+            })
+            .collect();
+        best = final_choice(&finalists, p.fit.orientation);
+        finalists[best].chosen = true;
     }
+    let chosen = order[best];
     let Finished { map_xy, c_yx, polish, coverage, covered, stages: tail_stages } = finished.swap_remove(best);
     stages.extend(tail_stages);
     // The other finalist's time, reported apart.
