@@ -16,7 +16,8 @@
 //! `SCALE=area|distances` the area ratio as it is or estimated from distance-only maps
 //! (default: from the heat kernels, `PartialScale::Heat`);
 //! `RATIO=truth` the true covered fraction given as the area ratio (`PartialOptions::ratio`,
-//! `--partial-ratio`: what a user who knows it gets); `KBASIS=k` the eigenpairs per shape (default 200);
+//! `--partial-ratio`: what a user who knows it gets); `LM=k` k landmarks from the ground truth
+//! (`--landmarks`; template points far apart on X, `landmarks_of`); `KBASIS=k` the eigenpairs per shape (default 200);
 //! `CLOUD=x` the parts as point clouds of their vertices. `UNITS=1` every shape in its own unit
 //! (×10^u, u ∈ [−3, 3] from a hash of its name). `STRIDE=s` every s-th pair of the range;
 //! `ONLY=i,j,…` these pairs of pairs.txt (0-based) instead. `DIAG=1` adds `diag`: the
@@ -213,6 +214,9 @@ fn main() -> Result<()> {
                 // What a user who knows the covered fraction gets (`--partial-ratio`).
                 opts.partial.ratio = Some(covered_fraction(&covered_truth(ym, &tx, &ty), &y.basis.mass));
             }
+            if let Ok(k) = std::env::var("LM") {
+                opts.axiomatic.landmarks.pairs = landmarks_of(x, &tx, &ty, k.parse().expect("LM"));
+            }
             let (f, g) = if det.partial {
                 opts.partial.wks = Some(WksRecipe::default());
                 partial::pair_wks(x, y, &WksRecipe::default())?
@@ -379,4 +383,30 @@ fn main() -> Result<()> {
 fn unit_factor(name: &str) -> f64 {
     let h = name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3));
     10f64.powf(6.0 * (h % 1_000_003) as f64 / 1_000_003.0 - 3.0)
+}
+
+/// `LM=k`: k landmarks from the ground truth, (vertex of X, vertex of Y) of template points present
+/// in both, spread over X by farthest points in space from the first present one (what a user
+/// who clicks k points far apart gives).
+fn landmarks_of(x: &PreparedShape, tx: &[Option<usize>], ty: &[Option<usize>], k: usize) -> Vec<(usize, usize)> {
+    let present: Vec<(usize, usize)> = tx.iter().zip(ty).filter_map(|(a, b)| Some(((*a)?, (*b)?))).collect();
+    let p = x.positions().expect("positions");
+    let d2 = |a: usize, b: usize| (0..3).map(|c| (p[a][c] - p[b][c]).powi(2)).sum::<f64>();
+    let mut pairs: Vec<(usize, usize)> = present.first().copied().into_iter().collect();
+    while pairs.len() < k.min(present.len()) {
+        let far = present
+            .iter()
+            .copied()
+            .max_by(|a, b| {
+                let da = pairs.iter().map(|q| d2(a.0, q.0)).fold(f64::INFINITY, f64::min);
+                let db = pairs.iter().map(|q| d2(b.0, q.0)).fold(f64::INFINITY, f64::min);
+                da.total_cmp(&db)
+            })
+            .expect("present");
+        if pairs.iter().any(|q| q.0 == far.0) {
+            break;
+        }
+        pairs.push(far);
+    }
+    pairs
 }

@@ -448,3 +448,64 @@ fn the_refinement_on_the_covered_region_recovers_the_identity() {
     let e = refine_on_covered_region(&x, &y, &slid, &cov[1..], &p, 0).unwrap_err().to_string();
     assert!(e.contains("coverage"), "{e}");
 }
+
+/// Landmarks on the partial path: given with the images of the *mirrored* body (the template's
+/// left–right symmetry, `tr_reg_000.sym.vts`), five landmarks turn the cut copy's map (the
+/// identity without them, `a_cut_copy_recovers_the_identity`) into the mirror map, against the
+/// orientation asked: the landmarks choose the basin, their candidate is kept, and they are
+/// pinned in the result.
+#[test]
+fn landmarks_choose_the_basin_of_a_part() {
+    use funcorr::io::indices::read_index_list_file;
+    let whole = mesh("tr_reg_000.off");
+    let m = whole.n_vertices();
+    let (part, orig) = cut(&whole, [0.3, -0.9, 0.3], 0.7);
+    let (x, y) = (prepare(part), prepare(whole));
+    let vts = read_index_list_file(&data("tr_reg_000.vts"), true, m).unwrap();
+    let sym = read_index_list_file(&data("tr_reg_000.sym.vts"), true, m).unwrap();
+    // The part's vertex of every template point the cut kept, and the mirror image on Y.
+    let mut in_part = vec![usize::MAX; m];
+    orig.iter().enumerate().for_each(|(i, &v)| in_part[v] = i);
+    let mirrored: Vec<(usize, usize)> =
+        vts.iter().zip(&sym).filter(|(&v, _)| in_part[v] != usize::MAX).map(|(&v, &s)| (in_part[v], s)).collect();
+    assert!(mirrored.len() > 2000, "{} template points in the part", mirrored.len());
+    // Five landmarks spread over the template points of the part (one vertex of X once).
+    let mut pairs: Vec<(usize, usize)> = Vec::new();
+    for k in 0..5 {
+        let p = mirrored[(k * mirrored.len()) / 5 + mirrored.len() / 10];
+        if pairs.iter().all(|q| q.0 != p.0) {
+            pairs.push(p);
+        }
+    }
+    let (f, g) = pair_wks(&x, &y, &WksRecipe::default()).unwrap();
+    let mut opts = MatchOptions::default();
+    opts.partial.wks = Some(WksRecipe::default());
+    opts.axiomatic.landmarks.pairs = pairs.clone();
+    let r = run(&x, &y, &f, &g, &opts).unwrap();
+    assert!(r.partial.as_ref().is_some_and(|d| d.partial && d.finalists.is_empty()));
+    for &(a, b) in &pairs {
+        assert_eq!(r.map_xy[a], b, "landmark {a} pinned to {b}");
+    }
+    let (cands, chosen) = r.candidates.as_ref().unwrap();
+    let best = cands.iter().map(|c| c.landmark_error).fold(f64::INFINITY, f64::min);
+    let c = &cands[*chosen];
+    eprintln!(
+        "chosen {chosen} (from landmarks: {}), landmark error {} (least {best})",
+        c.from_landmarks, c.landmark_error
+    );
+    assert!(cands.iter().any(|c| c.from_landmarks) && c.landmark_error <= best + opts.axiomatic.landmarks.tolerance);
+    // The map is the mirror map: the template points' images near their mirrored truth.
+    let py = y.positions().unwrap();
+    let edge = y.triangles().unwrap().mean_edge_length();
+    let mut d: Vec<f64> = mirrored
+        .iter()
+        .map(|&(i, s)| {
+            let (a, b) = (py[r.map_xy[i]], py[s]);
+            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt() / edge
+        })
+        .collect();
+    d.sort_by(|a, b| a.total_cmp(b));
+    let (median, p90) = (d[d.len() / 2], d[d.len() * 9 / 10]);
+    eprintln!("mirror map: median {median:.2}, 90 % {p90:.2} edges from the mirrored truth");
+    assert!(median < 2.0 && p90 < 5.0, "median {median}, 90 % {p90} edges");
+}

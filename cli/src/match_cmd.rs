@@ -34,7 +34,9 @@ pub(crate) struct MatchArgs {
     /// of Y), one per line (`#` comments). They join the default pipeline as strongly weighted
     /// landmark functions, in the choice among its candidates and pinned in every refinement step
     /// (`funcorr::matching::landmarks`): for pairs no intrinsic method can decide (non-isometric or
-    /// strongly symmetric shapes), 3 to 10 points such as the head, hands and feet.
+    /// strongly symmetric shapes), 3 to 10 points such as the head, hands and feet. On a part X
+    /// of Y (the partial path) they choose the basin and are pinned in the final map
+    /// (`funcorr::matching::partial`, "Landmarks").
     #[arg(long, value_name = "FILE")]
     pub(crate) landmarks: Option<PathBuf>,
     #[command(flatten)]

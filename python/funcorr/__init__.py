@@ -483,7 +483,8 @@ def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str
     0-based pairs ``(vertex of X, vertex of Y)`` or the path of a file of such pairs (``i j`` per
     line, as ``funcorr match --landmarks``). They join the fits' data, the choice among the
     candidates and every refinement step (``map_xy[i] == j`` for every pair): for pairs no
-    intrinsic method can decide (non-isometric or strongly symmetric shapes).
+    intrinsic method can decide (non-isometric or strongly symmetric shapes). On a part X of Y
+    (the partial path) they choose among the candidates and are pinned in the final map.
 
     ``progress``: None (default: a bar on stderr in a terminal, a notebook-friendly one in
     Jupyter, nothing when stderr is a file or a pipe; ``$FUNCORR_PROGRESS=0`` turns it off),

@@ -34,6 +34,10 @@
 //!    3 landmarks 12.06 / 11.60 / 11.17 → 7.57 / 7.49 / 9.57; 10 unchanged; faust_r unchanged
 //!    (EXPERIMENTS.md, "The landmarks judge the final ZoomOut").
 //!
+//! On a part X of Y the partial path ([`super::partial`], "Landmarks") uses item 2 (the
+//! landmarks' candidate and their error in the choice, which is then final) and pins them in
+//! its final map; not the data of item 1 nor the pins inside its refinements.
+//!
 //! Without landmarks (`pairs` empty) none of this runs and the pipeline is unchanged, bit for bit.
 
 use faer::Mat;

@@ -710,16 +710,6 @@ fn run_partial(
     opts: &MatchOptions,
     mut detection: partial::Detection,
 ) -> Result<MatchResult> {
-    if !opts.axiomatic.landmarks.is_empty() {
-        return Err(Error::invalid(
-            "landmarks",
-            format!(
-                "the partial path does not use landmarks (X was taken for a part of Y: {}); set partial to false \
-                 to match the shapes as whole ones with the landmarks",
-                detection.reason
-            ),
-        ));
-    }
     let r = partial::partial_pipeline(x, y, f, g, &opts.axiomatic, &opts.partial)?;
     detection.used_ratio = Some(r.area_ratio);
     detection.heat_minima = Some(r.heat_minima.clone()).filter(|m| !m.is_empty());

@@ -93,6 +93,21 @@
 //!    all right), on tosca_r_partial from 8.01 to 7.84 (1 switched), the faust parts as clouds
 //!    from 15.13 to 14.22 (3 switched), none worse (EXPERIMENTS.md). About 2 s more on a contested 2k → 5k pair (half of the pairs).
 //!
+//! **Landmarks** (`AxiomaticPipeline::landmarks`, `--landmarks`; [`super::landmarks`]): a few
+//! known pairs decide what distances and orientation cannot — a part of another body against
+//! the same part turned by half a turn about its long axis or mirrored front to back, which fit
+//! the samples' distances as well as the right map or better (EXPERIMENTS.md, "Which basins a
+//! part's candidates hold"). As in the whole pipeline's choice: one more candidate from the
+//! landmarks alone (the search samples trilaterated from their distances to the landmarks, X's
+//! in Y's units, corrected by the search's rounds with that as their data term), every
+//! candidate's landmark error (its probe's map at the landmarks of X) joins the score in units
+//! of `landmarks.tolerance`, and where no candidate of the asked orientation respects them they,
+//! not the orientation, tell a map from its mirror image. The choice is then final (no seeded
+//! challenger, no second finalist), and the landmarks are pinned in the final map. Not used on
+//! this path: the landmark functions in the fits' data and the pins inside ZoomOut and the
+//! polishes. `tests/partial.rs`: five landmarks at the mirrored images turn the cut copy's map
+//! into the mirror map against the orientation asked.
+//!
 //! **Detection** ([`detect`]): X is taken for a part when its boundary (total length of its
 //! boundary loops, / √area(X)) exceeds Y's (/ √area(Y)) by at least `min_boundary` and its area
 //! is at most `max_area_ratio` of Y's: in the inputs' units, or, where those say X is larger,
@@ -112,6 +127,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::axiomatic::{agrees, choose, samples_of, AxiomaticPipeline, Candidate};
+use super::landmarks::LandmarkData;
 use super::search::{self, SampleDistances};
 use crate::descriptors::signatures::{wks_energies, WksRecipe};
 use crate::descriptors::spec::PairDataSpec;
@@ -1148,6 +1164,26 @@ fn pass(
     // The spectral choice among the fits and their corrections; then the seeded maps as
     // challengers (module docs, step 3).
     let spectral = probed.len() - seeded.len().min(o.seeded);
+    // With landmarks (module docs, "Landmarks"): one more candidate from the landmarks alone, and
+    // every candidate's landmark error, read off its probe's map at the landmarks of X.
+    let lm = LandmarkData::new(x, y, &p.landmarks)?.map(|mut l| {
+        // X's distances in Y's units, as the search's.
+        l.dist_x = &l.dist_x * faer::Scale(r.sqrt());
+        l
+    });
+    if let Some(l) = &lm {
+        let costs = l.trilateration_costs(&s.x, &s.y);
+        let start = l.trilaterate(&costs, &s.y);
+        let (fixed, _) = search::correct(&s.x, &s.y, &start, Some(&costs), p.search.rounds)?;
+        let c0 = refine::pullback(phi, psi, &s.x.samples, &fixed, wide.kx(k0), k0)?;
+        let mut q = probe(&c0, false, k0, false)?;
+        q.candidate.from_landmarks = true;
+        probed.push(q);
+        starts.push(c0);
+        for q in probed.iter_mut() {
+            q.candidate.landmark_error = l.error(&restricted_map(phi, psi, &q.c, Some(&l.xs))?);
+        }
+    }
     let mut candidates: Vec<Candidate> = probed.iter().map(|q| q.candidate.clone()).collect();
     let median = |f: &dyn Fn(&Candidate) -> f64| {
         let mut v: Vec<f64> = candidates[..spectral].iter().map(f).filter(|x| x.is_finite() && *x > 0.0).collect();
@@ -1158,7 +1194,19 @@ fn pass(
     let spectral_choice =
         choose(&candidates[..spectral], p.fit.orientation, |c| c.distortion / me + c.data_misfit / md);
     let mut chosen = spectral_choice;
+    // With landmarks they choose, as in the whole pipeline: their error in units of the
+    // tolerance joins the score over every candidate, and when no candidate of the asked
+    // orientation respects them (within one tolerance of the lowest error), they, not that
+    // orientation, tell a map from its mirror image. No challenger and no second finalist.
+    if lm.is_some() {
+        let tol = p.landmarks.tolerance;
+        let best = candidates.iter().map(|c| c.landmark_error).fold(f64::INFINITY, f64::min);
+        let respected = candidates.iter().any(|c| agrees(c, p.fit.orientation) && c.landmark_error <= best + tol);
+        let orientation = if respected { p.fit.orientation } else { Orientation::Ignore };
+        chosen = choose(&candidates, orientation, |c| c.distortion / me + c.data_misfit / md + c.landmark_error / tol);
+    }
     let challenger = (spectral..probed.len())
+        .filter(|_| lm.is_none())
         .filter(|&i| agrees(&candidates[i], p.fit.orientation) && candidates[i].corrected_distortion.is_finite())
         .min_by(|&a, &b| candidates[a].corrected_distortion.total_cmp(&candidates[b].corrected_distortion));
     if let Some(b) = challenger {
@@ -1203,7 +1251,11 @@ fn pass(
         finalists[best].chosen = true;
     }
     let chosen = order[best];
-    let Finished { map_xy, c_yx, polish, coverage, covered, stages: tail_stages } = finished.swap_remove(best);
+    let Finished { mut map_xy, c_yx, polish, coverage, covered, stages: tail_stages } = finished.swap_remove(best);
+    // The landmarks' images are the user's (module docs, "Landmarks").
+    for (a, b) in lm.as_ref().map_or_else(Vec::new, LandmarkData::pins) {
+        map_xy[a] = b;
+    }
     stages.extend(tail_stages);
     // The other finalist's time, reported apart.
     for other in finished {
