@@ -592,9 +592,7 @@ pub fn axiomatic_pipeline_cow(
         // With landmarks, one more candidate from the landmarks alone: the samples trilaterated
         // from their distances to the landmarks, corrected with that as the data term.
         if let Some(l) = &lm {
-            let costs = l.trilateration_costs(&s.x, &s.y);
-            let start = l.trilaterate(&costs, &s.y);
-            let (fixed, _) = search::correct(&s.x, &s.y, &start, Some(&costs), p.search.rounds)?;
+            let fixed = l.trilaterated(&s.x, &s.y, p.search.rounds)?;
             let c0 = Pullback(refine::pullback(phi, psi, &s.x.samples, &fixed, k0, k0)?);
             let mut q = ctx.probe(&c0, k0, false)?;
             q.candidate.from_landmarks = true;

@@ -226,6 +226,16 @@ impl LandmarkData {
         })
     }
 
+    /// The search samples of X (`sx`) placed from their distances to the landmarks alone
+    /// ([module docs](self), 2.): each at the anchor of Y (`sy`) of least trilateration cost,
+    /// then corrected by the search's `rounds` with that cost as their data term
+    /// ([`super::search::correct`]). Vertex ids of Y, one per sample. Errors: the correction's.
+    pub fn trilaterated(&self, sx: &SampleDistances, sy: &SampleDistances, rounds: usize) -> Result<Vec<usize>> {
+        let costs = self.trilateration_costs(sx, sy);
+        let start = self.trilaterate(&costs, sy);
+        Ok(super::search::correct(sx, sy, &start, Some(&costs), rounds)?.0)
+    }
+
     /// For every search sample the anchor (vertex of Y) of least trilateration cost (`costs` from
     /// [`LandmarkData::trilateration_costs`]).
     pub fn trilaterate(&self, costs: &Mat<f64>, sy: &SampleDistances) -> Vec<usize> {

@@ -1172,9 +1172,7 @@ fn pass(
         l
     });
     if let Some(l) = &lm {
-        let costs = l.trilateration_costs(&s.x, &s.y);
-        let start = l.trilaterate(&costs, &s.y);
-        let (fixed, _) = search::correct(&s.x, &s.y, &start, Some(&costs), p.search.rounds)?;
+        let fixed = l.trilaterated(&s.x, &s.y, p.search.rounds)?;
         let c0 = refine::pullback(phi, psi, &s.x.samples, &fixed, wide.kx(k0), k0)?;
         let mut q = probe(&c0, false, k0, false)?;
         q.candidate.from_landmarks = true;
