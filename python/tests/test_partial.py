@@ -1,6 +1,7 @@
 """funcorr.match of a part of a shape to the whole: detected (or partial=True), the coverage of
 Y in the result, partial=False matching as whole shapes, and partial=True for another method a
-ValueError naming the keyword (`funcorr match --partial/--no-partial`)."""
+ValueError naming the keyword (`funcorr match --partial/--no-partial`); landmarks= on a part
+(used by the partial path and pinned)."""
 import numpy as np
 import pytest
 
@@ -74,3 +75,21 @@ def test_partial_false_matches_whole_shapes_and_other_methods_refuse_partial():
     assert whole.report["basis_size"] == 128
     with pytest.raises(ValueError, match="partial"):
         funcorr.match((Vp, Fp), (V, F), method="fmap", partial=True)
+
+
+def test_landmarks_on_a_part_are_used_and_pinned():
+    V, F = funcorr.read_mesh(X_PATH)
+    Vp, Fp, orig = cut(V, F, [0.3, -0.9, 0.3], 0.7)
+    idx = np.linspace(0, len(Vp) - 1, 5).astype(int)
+    pairs = np.stack([idx, orig[idx]], axis=1)
+    r = funcorr.match((Vp, Fp), (V, F), landmarks=pairs)
+    assert r.report["partial"]["partial"], r.report["partial"]
+    assert r.report["landmarks"] == 5
+    assert (r.map_xy[idx] == orig[idx]).all()
+    # The landmarks' own candidate is among the partial path's candidates.
+    cands = r.report["candidates"]["candidates"]
+    assert any(c.get("from_landmarks") for c in cands), cands
+    edges = np.concatenate([Fp[:, [0, 1]], Fp[:, [1, 2]], Fp[:, [2, 0]]])
+    edge = np.linalg.norm(Vp[edges[:, 0]] - Vp[edges[:, 1]], axis=1).mean()
+    d = np.linalg.norm(V[r.map_xy] - V[orig], axis=1) / edge
+    assert np.median(d) <= 1.5, np.median(d)
