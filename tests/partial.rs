@@ -495,16 +495,8 @@ fn landmarks_choose_the_basin_of_a_part() {
     );
     assert!(cands.iter().any(|c| c.from_landmarks) && c.landmark_error <= best + opts.axiomatic.landmarks.tolerance);
     // The map is the mirror map: the template points' images near their mirrored truth.
-    let py = y.positions().unwrap();
-    let edge = y.triangles().unwrap().mean_edge_length();
-    let mut d: Vec<f64> = mirrored
-        .iter()
-        .map(|&(i, s)| {
-            let (a, b) = (py[r.map_xy[i]], py[s]);
-            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt() / edge
-        })
-        .collect();
-    d.sort_by(|a, b| a.total_cmp(b));
+    let (images, truth): (Vec<usize>, Vec<usize>) = mirrored.iter().map(|&(i, s)| (r.map_xy[i], s)).unzip();
+    let d = distances_to_truth(&y, &images, &truth);
     let (median, p90) = (d[d.len() / 2], d[d.len() * 9 / 10]);
     eprintln!("mirror map: median {median:.2}, 90 % {p90:.2} edges from the mirrored truth");
     assert!(median < 2.0 && p90 < 5.0, "median {median}, 90 % {p90} edges");

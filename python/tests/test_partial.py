@@ -41,6 +41,13 @@ def cut(V, F, direction, keep):
     return V[orig], new[F], orig
 
 
+def edges_from_truth(V, Vp, Fp, map_xy, orig):
+    """Distance from each vertex's image to its own vertex in V, in the part's mean edge lengths."""
+    edges = np.concatenate([Fp[:, [0, 1]], Fp[:, [1, 2]], Fp[:, [2, 0]]])
+    edge = np.linalg.norm(Vp[edges[:, 0]] - Vp[edges[:, 1]], axis=1).mean()
+    return np.linalg.norm(V[map_xy] - V[orig], axis=1) / edge
+
+
 def test_a_cut_copy_is_matched_to_its_whole_with_coverage():
     V, F = funcorr.read_mesh(X_PATH)
     Vp, Fp, orig = cut(V, F, [0.3, -0.9, 0.3], 0.7)
@@ -51,9 +58,7 @@ def test_a_cut_copy_is_matched_to_its_whole_with_coverage():
     assert r.report["basis_size"] == 200
     assert r.map_xy.shape == (len(Vp),)
     # Every vertex near itself (tests/partial.rs measured a median of 1.0 mean edge lengths).
-    edges = np.concatenate([Fp[:, [0, 1]], Fp[:, [1, 2]], Fp[:, [2, 0]]])
-    edge = np.linalg.norm(Vp[edges[:, 0]] - Vp[edges[:, 1]], axis=1).mean()
-    d = np.linalg.norm(V[r.map_xy] - V[orig], axis=1) / edge
+    d = edges_from_truth(V, Vp, Fp, r.map_xy, orig)
     assert np.median(d) <= 1.5 and np.percentile(d, 95) <= 4.0, (np.median(d), np.percentile(d, 95))
     # The coverage of Y against the part's vertices (0.934 in tests/partial.rs).
     assert r.coverage.shape == (len(V),)
@@ -89,7 +94,5 @@ def test_landmarks_on_a_part_are_used_and_pinned():
     # The landmarks' own candidate is among the partial path's candidates.
     cands = r.report["candidates"]["candidates"]
     assert any(c.get("from_landmarks") for c in cands), cands
-    edges = np.concatenate([Fp[:, [0, 1]], Fp[:, [1, 2]], Fp[:, [2, 0]]])
-    edge = np.linalg.norm(Vp[edges[:, 0]] - Vp[edges[:, 1]], axis=1).mean()
-    d = np.linalg.norm(V[r.map_xy] - V[orig], axis=1) / edge
+    d = edges_from_truth(V, Vp, Fp, r.map_xy, orig)
     assert np.median(d) <= 1.5, np.median(d)

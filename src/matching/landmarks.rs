@@ -147,11 +147,19 @@ impl LandmarkData {
                 "landmarks need shapes with a surface (meshes or 3-D point clouds) for their geodesic distances",
             ));
         };
+        let (gx, gy) = rayon::join(|| GraphGeodesics::mesh_edges(tx), || GraphGeodesics::mesh_edges(ty));
+        Self::from_graphs(&gx?, &gy?, opts)
+    }
+
+    /// [`LandmarkData::new`] on the edge graphs of the two surfaces, built already (X's n and
+    /// Y's m vertices; at unit area). Errors: pairs out of range or repeated, bad weights.
+    pub fn from_graphs(gx: &GraphGeodesics, gy: &GraphGeodesics, opts: &Landmarks) -> Result<Option<LandmarkData>> {
+        if opts.is_empty() {
+            return Ok(None);
+        }
+        opts.check(gx.n(), gy.n())?;
         let (xs, ys): (Vec<usize>, Vec<usize>) = opts.pairs.iter().copied().unzip();
-        let (dx, dy) = rayon::join(
-            || GraphGeodesics::mesh_edges(tx)?.distances(&xs),
-            || GraphGeodesics::mesh_edges(ty)?.distances(&ys),
-        );
+        let (dx, dy) = rayon::join(|| gx.distances(&xs), || gy.distances(&ys));
         Ok(Some(LandmarkData { xs, ys, dist_x: dx?, dist_y: dy? }))
     }
 

@@ -842,6 +842,8 @@ pub fn partial_pipeline(
     let (gx, gy) = rayon::join(|| GraphGeodesics::mesh_edges(tx), || GraphGeodesics::mesh_edges(ty));
     let (gx, gy) = (gx?, gy?);
     let surfaces = Surfaces { px, nx, py, ny, gx: &gx, gy: &gy };
+    // The user's landmarks, checked before the work (module docs, "Landmarks").
+    let lm = LandmarkData::from_graphs(&gx, &gy, &p.landmarks)?;
     let (sx, sy) = rayon::join(
         || SampleDistances::new(tx, &x.basis.mass, &gx, p.search.samples.max(3)),
         || SampleDistances::new(ty, &y.basis.mass, &gy, p.search.anchors.max(3)),
@@ -880,7 +882,7 @@ pub fn partial_pipeline(
         Some(recipe) if r != r0 => pair_wks_at(x, y, recipe, r)?,
         _ => (f.clone(), g.clone()),
     };
-    let mut result = pass(x, y, &f1, &g1, p, o, &surfaces, (&sx, &sy), r)?;
+    let mut result = pass(x, y, &f1, &g1, p, o, &surfaces, (&sx, &sy), lm, r)?;
     result.stages.insert(0, ("area ratio".to_string(), ratio_seconds));
     result.heat_minima = heat_minima;
     result.stages.insert(0, ("search samples".to_string(), search_seconds));
@@ -967,8 +969,9 @@ struct Surfaces<'a> {
     gy: &'a GraphGeodesics,
 }
 
-/// One pass of [`partial_pipeline`] with the area ratio r (area of X in Y's units / area of Y)
-/// and the search's samples of X (distances at unit area) and anchors of Y.
+/// One pass of [`partial_pipeline`] with the area ratio r (area of X in Y's units / area of Y),
+/// the search's samples of X (distances at unit area) and anchors of Y, and the landmarks' data
+/// (X's distances at unit area) when given.
 #[allow(clippy::too_many_arguments)]
 fn pass(
     x: &PreparedShape,
@@ -979,6 +982,7 @@ fn pass(
     o: &PartialOptions,
     surfaces: &Surfaces,
     (sx, sy): (&SampleDistances, &SampleDistances),
+    lm: Option<LandmarkData>,
     r: f64,
 ) -> Result<PartialResult> {
     let Surfaces { px, nx, py, ny, .. } = *surfaces;
@@ -1166,7 +1170,7 @@ fn pass(
     let spectral = probed.len() - seeded.len().min(o.seeded);
     // With landmarks (module docs, "Landmarks"): one more candidate from the landmarks alone, and
     // every candidate's landmark error, read off its probe's map at the landmarks of X.
-    let lm = LandmarkData::new(x, y, &p.landmarks)?.map(|mut l| {
+    let lm = lm.map(|mut l| {
         // X's distances in Y's units, as the search's.
         l.dist_x = &l.dist_x * faer::Scale(r.sqrt());
         l
