@@ -359,8 +359,12 @@ fn main() -> Result<()> {
                         format!("[{},{:.3},{},{e:.3}]", f.candidate, f.orientation, u8::from(f.chosen))
                     })
                     .collect();
+                // With landmarks: how well they agree (discrepancy per landmark, suspects).
+                let lm_check = r.landmark_check.as_ref().map_or(String::new(), |c| {
+                    format!(",\"landmark_check\":{{\"discrepancy\":{:?},\"suspects\":{:?}}}", c.discrepancy, c.suspects)
+                });
                 format!(
-                    "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"n\":{},\"ratio\":{:.3},\"partial\":{det},\"direct\":{d:.3},\"sym\":{s:.3},\"iou\":{iou:.3},\"points\":{},\"used\":{:.3},\"k\":{chosen},\"corrected\":{corrected},\"C\":[{},{}],\"true_ratio\":{true_ratio:.3},\"seconds\":{secs:.2},\"polish\":{polish},\"finalists\":[{}],\"minima\":{:?}{diag}}}",
+                    "{{\"x\":\"{xn}\",\"y\":\"{yn}\",\"n\":{},\"ratio\":{:.3},\"partial\":{det},\"direct\":{d:.3},\"sym\":{s:.3},\"iou\":{iou:.3},\"points\":{},\"used\":{:.3},\"k\":{chosen},\"corrected\":{corrected},\"C\":[{},{}],\"true_ratio\":{true_ratio:.3},\"seconds\":{secs:.2},\"polish\":{polish},\"finalists\":[{}],\"minima\":{:?}{lm_check}{diag}}}",
                     x.n(),
                     x.area / y.area,
                     present.len(),

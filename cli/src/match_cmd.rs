@@ -36,7 +36,9 @@ pub(crate) struct MatchArgs {
     /// (`funcorr::matching::landmarks`): for pairs no intrinsic method can decide (non-isometric or
     /// strongly symmetric shapes), 3 to 10 points such as the head, hands and feet. On a part X
     /// of Y (the partial path) they choose the basin and are pinned in the final map
-    /// (`funcorr::matching::partial`, "Landmarks").
+    /// (`funcorr::matching::partial`, "Landmarks"). A landmark that disagrees with the others
+    /// (its geodesic distances to them differ between X and Y) is named on stderr and in
+    /// report.json (`landmark_check`) and used as given.
     #[arg(long, value_name = "FILE")]
     pub(crate) landmarks: Option<PathBuf>,
     #[command(flatten)]
@@ -172,6 +174,9 @@ pub(crate) fn match_shapes(args: &MatchArgs) -> Result<()> {
     // vertices ≈ 0.34 GB per shape that the refinement would otherwise hold).
     let q = f.q();
     let r = funcorr::matching::run_owned(&px, &py, f, g, &opts)?;
+    if let (Some(path), Some(check)) = (&args.landmarks, &r.landmark_check) {
+        warn_landmarks(path, &opts.axiomatic.landmarks.pairs, check);
+    }
     let (x, y) = (&px.shape, &py.shape);
     // The soft maps read C (between the input bases) with the input bases.
     let input_bases = (!args.soft.is_empty()).then(|| (px.input_basis(), py.input_basis()));
@@ -284,6 +289,38 @@ pub(crate) fn note_denoising(path: &Path, p: &funcorr::PreparedShape, quiet: boo
             d.area_ratio,
         );
     }
+}
+
+/// Says on stderr which landmarks of `path` (pairs `pairs`, 0-based) disagree with the others
+/// (`funcorr::matching::landmarks::LandmarkCheck`): they are used as given, and should be
+/// checked.
+pub(crate) fn warn_landmarks(
+    path: &Path,
+    pairs: &[(usize, usize)],
+    check: &funcorr::matching::landmarks::LandmarkCheck,
+) {
+    if check.suspects.is_empty() {
+        return;
+    }
+    let mut others: Vec<f64> =
+        (0..check.discrepancy.len()).filter(|i| !check.suspects.contains(i)).map(|i| check.discrepancy[i]).collect();
+    others.sort_by(|a, b| a.total_cmp(b));
+    let typical = others.get(others.len() / 2).map_or(String::new(), |d| format!(" (the others: {:.0} %)", 100.0 * d));
+    let listed: Vec<String> = check
+        .suspects
+        .iter()
+        .map(|&l| {
+            let (a, b) = pairs[l];
+            format!("pair {} (vertex {a} → {b}, 0-based): {:.0} %", l + 1, 100.0 * check.discrepancy[l])
+        })
+        .collect();
+    eprintln!(
+        "warning: landmarks of {} that disagree with the others — their geodesic distances to the other \
+         landmarks differ between X and Y by (median) {}{typical}; they are used as given: check that each is the \
+         right point (report.json: landmark_check)",
+        funcorr::error::escape_path(path),
+        listed.join(", "),
+    );
 }
 
 /// Says on stderr when a shape has several connected components (of its faces, or of its

@@ -2021,8 +2021,10 @@ fn direct_error_bundled_pair(map: &Path) -> f64 {
 
 /// `match --landmarks`: on the bundled pair matched with the wrong orientation (the intrinsic
 /// map is then the mirror image of the truth), five ground-truth landmarks give back the unflipped
-/// map (mean error ×100 49.6 → 8.4), hold at their images, and are counted in report.json; a landmark file with a vertex out
-/// of range or a wrong column count is an error naming the file and line.
+/// map (mean error ×100 49.6 → 8.4), hold at their images, and are counted in report.json; a
+/// landmark given at a wrong place is named as a suspect (stderr, report.json) and used as
+/// given; a landmark file with a vertex out of range or a wrong column count is an error naming
+/// the file and line.
 #[test]
 fn match_with_landmarks_unflips_the_map() {
     use funcorr::io::indices::read_index_list_file;
@@ -2061,6 +2063,34 @@ fn match_with_landmarks_unflips_the_map() {
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(with.join("report.json")).unwrap()).unwrap();
     assert_eq!(report["landmarks"], 5);
+    // The landmarks agree with each other: none is a suspect, no warning.
+    assert_eq!(report["landmark_check"]["suspects"], serde_json::json!([]), "{}", report["landmark_check"]);
+    assert!(!text(&r.stderr).contains("disagree"), "{}", text(&r.stderr));
+    // The fifth landmark given at the image of another template point far from it: it is named
+    // on stderr and in report.json, and used as given.
+    let sixth = funcorr::spatial::farthest_points(&mx, &gx, 6)[5];
+    let moved = d.join("moved_pairs.txt");
+    let mut wrong = pairs.clone();
+    wrong[4].1 = gy[sixth];
+    std::fs::write(&moved, wrong.iter().map(|(i, j)| format!("{i} {j}\n")).collect::<String>()).unwrap();
+    let out_moved = d.join("moved");
+    let r = run(&[
+        &["match", xs, ys, "--landmarks", moved.to_str().unwrap(), "-o", out_moved.to_str().unwrap()],
+        &common[..],
+    ]
+    .concat());
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let err = text(&r.stderr);
+    assert!(err.contains("disagree") && err.contains("pair 5 (vertex"), "{err}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_moved.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["landmark_check"]["suspects"], serde_json::json!([4]), "{}", report["landmark_check"]);
+    let map: Vec<usize> = std::fs::read_to_string(out_moved.join("map.txt"))
+        .unwrap()
+        .lines()
+        .map(|l| l.trim().parse().unwrap())
+        .collect();
+    assert_eq!(map[wrong[4].0], wrong[4].1, "the suspect landmark is still pinned as given");
     let flipped_report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(flipped.join("report.json")).unwrap()).unwrap();
     assert_eq!(flipped_report["landmarks"], 0);

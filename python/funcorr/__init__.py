@@ -260,7 +260,10 @@ class MatchResult:
     ``C_method`` the method's own before refinement; ``coefficients`` (A, B) of the completion
     method's subspace form (k' × k), else None. ``X``, ``Y``: the prepared shapes (reusable).
     ``report``: options, sizes, solver and per-stage seconds (the report.json of
-    ``funcorr match``; ``report["partial"]`` the partial detection). ``coverage`` (m,) float64:
+    ``funcorr match``; ``report["partial"]`` the partial detection; with landmarks
+    ``report["landmark_check"]``: per landmark the median relative difference of its geodesic
+    distances to the others on X and on Y, and the ``suspects`` that disagree with the others,
+    which are used as given). ``coverage`` (m,) float64:
     when X was matched as a part of Y, for every vertex of Y the confidence in [0, 1] that X
     covers it (≥ ½: covered; ``coverage.npy`` of ``funcorr match``), else None.
     ``evaluation``: the last :meth:`evaluate`'s result (None before).
@@ -484,7 +487,9 @@ def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str
     line, as ``funcorr match --landmarks``). They join the fits' data, the choice among the
     candidates and every refinement step (``map_xy[i] == j`` for every pair): for pairs no
     intrinsic method can decide (non-isometric or strongly symmetric shapes). On a part X of Y
-    (the partial path) they choose among the candidates and are pinned in the final map.
+    (the partial path) they choose among the candidates and are pinned in the final map. A
+    landmark that disagrees with the others is named in ``report["landmark_check"]["suspects"]``
+    and used as given.
 
     ``progress``: None (default: a bar on stderr in a terminal, a notebook-friendly one in
     Jupyter, nothing when stderr is a file or a pipe; ``$FUNCORR_PROGRESS=0`` turns it off),

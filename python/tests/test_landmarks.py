@@ -35,6 +35,9 @@ def test_landmarks_unflip_the_map_and_equal_the_cli(cli, tmp_path, ground_truth)
     assert r.evaluate(gx, gy)["mean"] < 0.1  # measured by the CLI's test: 49.6 -> 8.4 (x100)
     assert np.array_equal(r.map_xy[pairs[:, 0]], pairs[:, 1])
     assert r.report["landmarks"] == 5
+    # They agree with each other (the check of funcorr::matching::landmarks::LandmarkCheck).
+    check = r.report["landmark_check"]
+    assert check["suspects"] == [] and len(check["discrepancy"]) == 5, check
     # The same pairs from a file, in Python and on the command line: the same map.
     path = tmp_path / "pairs.txt"
     np.savetxt(path, pairs, fmt="%d")

@@ -326,6 +326,8 @@ pub struct AxiomaticResult {
     /// What the basin search's correction did (the correction of the candidate it started
     /// from; None without the search).
     pub correction: Option<super::search::Correction>,
+    /// With landmarks: how well they agree with each other ([`super::landmarks::LandmarkCheck`]).
+    pub landmark_check: Option<super::landmarks::LandmarkCheck>,
 }
 
 pub(super) fn samples_of(s: &PreparedShape, count: usize) -> Result<Samples> {
@@ -639,7 +641,8 @@ pub fn axiomatic_pipeline_cow(
     drop((fx, gy));
     let (c_yx, map_xy, near_samples) =
         refine_from(x, y, c_start, &c_fit, p, &near_positions, (&pins, lm.as_ref()), &mut stages)?;
-    Ok(AxiomaticResult { map_xy, c_yx, c_fit, candidates, chosen, stages, near_samples, correction })
+    let landmark_check = lm.as_ref().map(LandmarkData::check);
+    Ok(AxiomaticResult { map_xy, c_yx, c_fit, candidates, chosen, stages, near_samples, correction, landmark_check })
 }
 
 /// What every probe of [`axiomatic_pipeline`] reads.

@@ -316,6 +316,9 @@ pub struct MatchReport<'a> {
     pub partial: Option<&'a partial::Detection>,
     /// Number of user landmarks the run used ([`landmarks`]; 0: none).
     pub landmarks: usize,
+    /// With landmarks: how well they agree with each other ([`landmarks::LandmarkCheck`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub landmark_check: Option<&'a landmarks::LandmarkCheck>,
     /// The stages in order.
     pub stages: Vec<StageTime<'a>>,
 }
@@ -349,6 +352,9 @@ pub struct MatchResult {
     /// For a part X of Y: for every vertex of Y (length m) the confidence in [0, 1] that X
     /// covers it ([`partial::coverage`]; ≥ ½: covered).
     pub coverage: Option<Vec<f64>>,
+    /// With landmarks (the axiomatic method): how well they agree with each other
+    /// ([`landmarks::LandmarkCheck`]).
+    pub landmark_check: Option<landmarks::LandmarkCheck>,
 }
 
 impl MatchResult {
@@ -374,6 +380,7 @@ impl MatchResult {
             correction: self.correction.as_ref(),
             partial: self.partial.as_ref(),
             landmarks: if opts.method == Method::Axiomatic { opts.axiomatic.landmarks.pairs.len() } else { 0 },
+            landmark_check: self.landmark_check.as_ref(),
             stages: self.stages.iter().map(|(s, t)| StageTime { stage: s, seconds: *t }).collect(),
         }
     }
@@ -558,6 +565,7 @@ fn run_with_gradients(
         correction: None,
         partial: None,
         coverage: None,
+        landmark_check: None,
     })
 }
 
@@ -694,6 +702,7 @@ fn run_cow(
         correction: r.correction,
         partial: Some(detection),
         coverage: None,
+        landmark_check: r.landmark_check,
     };
     Ok(in_input_units(r, x, y))
 }
@@ -735,6 +744,7 @@ fn run_partial(
         correction: r.correction,
         partial: Some(detection),
         coverage: Some(r.coverage),
+        landmark_check: r.landmark_check,
     };
     Ok(in_input_units(r, x, y))
 }

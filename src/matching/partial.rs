@@ -624,6 +624,9 @@ pub struct PartialResult {
     /// With a contested choice, both maps finished (the first choice first; module docs,
     /// step 8); empty otherwise.
     pub finalists: Vec<Finalist>,
+    /// With landmarks: how well they agree with each other, X's distances in Y's units
+    /// ([`super::landmarks::LandmarkCheck`]).
+    pub landmark_check: Option<super::landmarks::LandmarkCheck>,
 }
 
 /// A candidate finished to a final map and judged by its orientation (module docs, step 8).
@@ -1175,6 +1178,7 @@ fn pass(
         l.dist_x = &l.dist_x * faer::Scale(r.sqrt());
         l
     });
+    let landmark_check = lm.as_ref().map(LandmarkData::check);
     if let Some(l) = &lm {
         let fixed = l.trilaterated(&s.x, &s.y, p.search.rounds)?;
         let c0 = refine::pullback(phi, psi, &s.x.samples, &fixed, wide.kx(k0), k0)?;
@@ -1278,6 +1282,7 @@ fn pass(
         polish,
         covered,
         finalists,
+        landmark_check,
     })
 }
 
