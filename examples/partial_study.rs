@@ -17,7 +17,8 @@
 //! (default: from the heat kernels, `PartialScale::Heat`);
 //! `RATIO=truth` the true covered fraction given as the area ratio (`PartialOptions::ratio`,
 //! `--partial-ratio`: what a user who knows it gets); `LM=k` k landmarks from the ground truth
-//! (`--landmarks`; template points far apart on X, `landmarks_of`); `KBASIS=k` the eigenpairs per shape (default 200);
+//! (`--landmarks`; template points far apart on X, `landmarks_of`; with `LMDROP=1` those the
+//! landmark check names as suspects are dropped and the pair is run again); `KBASIS=k` the eigenpairs per shape (default 200);
 //! `CLOUD=x` the parts as point clouds of their vertices. `UNITS=1` every shape in its own unit
 //! (×10^u, u ∈ [−3, 3] from a hash of its name). `STRIDE=s` every s-th pair of the range;
 //! `ONLY=i,j,…` these pairs of pairs.txt (0-based) instead. `DIAG=1` adds `diag`: the
@@ -227,7 +228,18 @@ fn main() -> Result<()> {
                     funcorr::descriptors::signatures::wks_recipe(&y.basis, &r)?,
                 )
             };
-            matching::run(x, y, &f, &g, &opts)
+            let r = matching::run(x, y, &f, &g, &opts)?;
+            // `LMDROP=1`: the landmarks the check names as suspects dropped, and the pair run
+            // again with the others (what a user who drops them gets).
+            match r.landmark_check.as_ref().filter(|c| !c.suspects.is_empty() && std::env::var("LMDROP").is_ok()) {
+                Some(c) => {
+                    let keep = |i: &usize| !c.suspects.contains(i);
+                    let pairs = &mut opts.axiomatic.landmarks.pairs;
+                    *pairs = (0..pairs.len()).filter(keep).map(|i| pairs[i]).collect();
+                    matching::run(x, y, &f, &g, &opts)
+                }
+                None => Ok(r),
+            }
         };
         let line = match run() {
             Ok(r) => {
