@@ -489,7 +489,7 @@ def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str
     intrinsic method can decide (non-isometric or strongly symmetric shapes). On a part X of Y
     (the partial path) they choose among the candidates and are pinned in the final map. A
     landmark that disagrees with the others is named in ``report["landmark_check"]["suspects"]``
-    and used as given.
+    and by a ``UserWarning``, and used as given.
 
     ``progress``: None (default: a bar on stderr in a terminal, a notebook-friendly one in
     Jupyter, nothing when stderr is a file or a pipe; ``$FUNCORR_PROGRESS=0`` turns it off),
@@ -503,6 +503,8 @@ def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str
     opts["method"] = method
     with _reporting(progress, "funcorr.match") as report:
         r = _funcorr.match_shapes(X, Y, data, opts, report)
+    run_report = _json.loads(r["report"])
+    _warn_landmarks(run_report)
     return MatchResult(
         map_xy=r["map_xy"],
         map_yx=r["map_yx"],
@@ -510,11 +512,31 @@ def match(X: ShapeLike, Y: ShapeLike, method: str = "axiomatic", data: Union[str
         C_method=r["C_method"],
         coefficients=r["coefficients"],
         stages=list(r["stages"]),
-        report=_json.loads(r["report"]),
+        report=run_report,
         q=r["q"],
         X=r["X"],
         Y=r["Y"],
         coverage=r["coverage"],
+    )
+
+
+def _warn_landmarks(report: Dict[str, Any]) -> None:
+    """A UserWarning naming the landmarks that disagree with the others
+    (``report["landmark_check"]``, as ``funcorr match`` says on stderr); they were used as given."""
+    check = report.get("landmark_check") or {}
+    suspects = check.get("suspects") or []
+    if not suspects:
+        return
+    import warnings
+
+    d = check["discrepancy"]
+    listed = ", ".join(f"pair {i + 1}: {100 * d[i]:.0f} %" for i in suspects)
+    warnings.warn(
+        "landmarks that disagree with the others (the median relative difference of their geodesic "
+        f"distances to the other landmarks on X and on Y): {listed}; they were used as given - check that "
+        "each is the right point (report['landmark_check'])",
+        UserWarning,
+        stacklevel=3,
     )
 
 

@@ -53,6 +53,20 @@ def test_landmarks_unflip_the_map_and_equal_the_cli(cli, tmp_path, ground_truth)
     assert np.array_equal(np.loadtxt(out / "map.txt", dtype=np.int64), r.map_xy)
 
 
+def test_a_landmark_that_disagrees_is_named_and_used_as_given():
+    """The fifth landmark given at the image of a template point far from its own: a UserWarning
+    and report["landmark_check"] name it (the CLI measured 59 % against 8 % for the others), and it
+    is still pinned."""
+    pairs = farthest_template_pairs(6)
+    moved = pairs[:5].copy()
+    moved[4, 1] = pairs[5, 1]
+    with pytest.warns(UserWarning, match=r"pair 5: \d+ %"):
+        r = funcorr.match(X_PATH, Y_PATH, landmarks=moved)
+    check = r.report["landmark_check"]
+    assert check["suspects"] == [4] and check["discrepancy"][4] > 0.4, check
+    assert r.map_xy[moved[4, 0]] == moved[4, 1]
+
+
 def test_bad_landmarks_are_value_errors(tmp_path):
     with pytest.raises(ValueError, match=r"landmarks.*\(k, 2\)"):
         funcorr.match(X_PATH, Y_PATH, landmarks=np.zeros((3, 3), dtype=np.int64))
