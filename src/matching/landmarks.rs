@@ -138,14 +138,16 @@ pub const SUSPECT_FACTOR: f64 = 2.0;
 /// the mouse, the left hand for the right one, a point on the other sheet where a body touches
 /// itself) does not repeat on Y its geodesic distances to the others on X. The pipeline trusts
 /// the landmarks as given; this only says which ones to check (`report.json`'s
-/// `landmark_check`, a warning of `funcorr match`).
+/// `landmark_check`, a warning of `funcorr match` and of Python's `funcorr.match`).
 ///
 /// Measured (EXPERIMENTS.md, "Checking the landmarks against each other"): five ground-truth
 /// landmarks on every faust_r pair, one of them then moved to a random template point more than
 /// 0.3 √area away — no clean set flagged, the moved landmark found on 82 of 97 pairs, no other
-/// landmark flagged; tosca_r (109 pairs, thresholds not chosen there): 4 clean sets flagged (cats,
-/// whose poses are not isometric), the moved one found on 90; three landmarks (only the set can
-/// be flagged): faust_r 2 / 91, tosca_r 10 / 101.
+/// landmark flagged; tosca_r (109 pairs, thresholds not chosen there): 4 clean sets flagged (two
+/// cats, two dogs), the moved one found on 90; three landmarks (the moved one cannot be told
+/// from those it disagrees with): faust_r 2 clean sets / 90 moved found, tosca_r 10 / 99. On
+/// faust_r_partial with five, the six pairs whose landmark lies on the other sheet of a
+/// self-contact and no other.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct LandmarkCheck {
     /// For every landmark l (in the order of the pairs): the median over the other landmarks k
@@ -378,6 +380,11 @@ pub(crate) fn with_landmarks(mut samples: Samples, vertices: &[usize], pin_weigh
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::descriptors::signatures::{wks_recipe, WksRecipe};
+    use crate::fmap::axiomatic::AxiomaticOptions;
+    use crate::fmap::energy::Orientation;
+    use crate::matching::axiomatic::tests::{agreement, pair};
+    use crate::matching::axiomatic::{axiomatic_pipeline, AxiomaticPipeline};
 
     /// Distances that agree (up to a common scale of 5 %) give no suspect; one landmark moved
     /// is the one suspect, the others are not; with three landmarks the disagreeing ones are
@@ -414,11 +421,6 @@ mod tests {
         }
         assert_eq!(landmark_check(&apart, &dx).suspects, vec![5]);
     }
-    use crate::descriptors::signatures::{wks_recipe, WksRecipe};
-    use crate::fmap::axiomatic::AxiomaticOptions;
-    use crate::fmap::energy::Orientation;
-    use crate::matching::axiomatic::tests::{agreement, pair};
-    use crate::matching::axiomatic::{axiomatic_pipeline, AxiomaticPipeline};
 
     /// The pipeline asked for the wrong orientation finds the mirror image of the true map (the
     /// data cannot tell them apart); five landmarks with their true images give the true map
